@@ -1,0 +1,165 @@
+"""The offline entry point :func:`condition` and its result :class:`Conditioned`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from guardid.conditioning import alignment
+from guardid.conditioning.bandwidth import choose_cutoff
+from guardid.conditioning.filters import (
+    DEFAULT_ORDER,
+    central_derivatives,
+    decimation_factor,
+    is_uniform,
+    resample,
+    uniform_grid,
+    zero_phase_lowpass,
+)
+from guardid.conditioning.stiction import default_stiction_threshold, stiction_mask
+from guardid.conditioning.units import current_to_torque
+
+
+@dataclass(frozen=True)
+class Conditioned:
+    """Conditioned signals, all (M, n) on the same instants ``t`` (M,) [s].
+
+    q [rad], qd [rad/s], qdd [rad/s^2], tau [N m, or the effort's unit when
+    ``torque_unit == 'effort'``]. ``mask`` (M,) bool is True for rows usable for
+    identification (not near zero velocity and not within ``edge_s`` of either end);
+    ``stiction`` (M,) bool is True where some joint's |qd| < ``threshold`` (n,) [rad/s].
+    ``cutoff_hz`` [Hz] and ``decimation`` (k) are the values used; ``notes`` say how
+    each choice was made.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    tau: np.ndarray
+    mask: np.ndarray
+    stiction: np.ndarray
+    threshold: np.ndarray
+    cutoff_hz: float
+    decimation: int
+    torque_unit: str
+    notes: list[str] = field(default_factory=list)
+
+
+def condition(
+    t_s,
+    q_rad,
+    effort,
+    *,
+    cutoff_hz: float | None = None,
+    decimate: int | None = None,
+    stiction_threshold=None,
+    align_period_mean: bool = True,
+    gain=None,
+    highest_harmonic_hz: float | None = None,
+    resolution_rad=None,
+    order: int = DEFAULT_ORDER,
+    edge_s: float | None = None,
+) -> Conditioned:
+    """Condition a log for identification: filter, differentiate, align, decimate, mask.
+
+    Parameters
+    ----------
+    t_s : array_like (N,)
+        Sample times [s], strictly increasing; may jitter (then everything is resampled by
+        cubic spline onto a uniform grid with the median step before filtering).
+    q_rad : array_like (N, n)
+        Joint positions [rad] (see :func:`counts_to_rad` for encoder counts).
+    effort : array_like (N, n)
+        Motor current [A] (or joint torque [N m] with ``gain=1``).
+    cutoff_hz : float, optional
+        Low-pass cut-off [Hz]; default from the trajectory (:func:`choose_cutoff`, using
+        ``highest_harmonic_hz`` if given).
+    decimate : int, optional
+        Keep every k-th sample after filtering; default: the largest k keeping the new
+        Nyquist frequency >= 2 x cutoff; 1 = no decimation.
+    stiction_threshold : scalar or (n,) [rad/s], optional
+        Default: :func:`default_stiction_threshold` (5 % of peak speed, at least 3
+        encoder quanta per sample period if ``resolution_rad`` [rad] is given).
+    align_period_mean : bool
+        True (guard firmware): effort[k] is the mean over (t_{k-1}, t_k]; it is turned
+        into the value at t_k (:func:`align_period_mean`). False: instantaneous samples.
+    gain : scalar, (n,) [N m/A], a ChainDescription (N eta kt of its drives) or None
+        tau = gain * effort; None keeps the effort unit (identification in current units,
+        ``torque_unit == 'effort'``).
+    order : int
+        Butterworth order (zero-phase: applied forward and backward).
+    edge_s : float, optional
+        Rows within this time [s] of either end are masked (filter and stencil end
+        effects); default one cut-off period, 1 / cutoff_hz.
+
+    The same zero-phase low-pass is applied to positions and efforts (parallel
+    filtering), so both sides of tau = Y(q, qd, qdd) theta see the same filter; q, qd, qdd
+    and tau all refer to the instants ``t``.
+    """
+    t = np.asarray(t_s, dtype=float)
+    q = np.asarray(q_rad, dtype=float).reshape(len(t), -1)
+    eff = np.asarray(effort, dtype=float).reshape(len(t), -1)
+    if q.shape != eff.shape:
+        raise ValueError(f"q {q.shape} and effort {eff.shape} must have the same shape")
+    notes: list[str] = []
+    if is_uniform(t):
+        grid, dt = t, float(np.median(np.diff(t)))
+    else:
+        grid, dt = uniform_grid(t)
+        q = resample(t, q, grid)
+        notes.append(f"uneven time stamps: resampled (cubic spline) to a uniform {dt:.6g} s grid")
+    fs = 1.0 / dt
+    if cutoff_hz is None:
+        cutoff_hz = choose_cutoff(grid, q, highest_harmonic_hz=highest_harmonic_hz)
+        how = "5 x highest harmonic" if highest_harmonic_hz else "2 x 99.5 % energy bandwidth"
+        notes.append(f"cut-off {cutoff_hz:.3g} Hz chosen from the trajectory ({how})")
+    else:
+        notes.append(f"cut-off {cutoff_hz:.3g} Hz set by the caller")
+    if align_period_mean:
+        eff = alignment.align_period_mean(t, eff, grid)
+        notes.append("effort taken as period means, aligned to the tick instants")
+    elif grid is not t:
+        eff = resample(t, eff, grid)
+    qf = zero_phase_lowpass(q, fs, cutoff_hz, order)
+    tau = zero_phase_lowpass(eff, fs, cutoff_hz, order)
+    qd, qdd = central_derivatives(qf, dt)
+    if gain is None:
+        unit = "effort"
+        notes.append("gain=None: tau is the filtered effort (identification in current units)")
+    else:
+        tau = current_to_torque(tau, gain)
+        unit = "N m"
+    k = decimation_factor(fs, cutoff_hz) if decimate is None else int(decimate)
+    if k > 1:
+        notes.append(f"decimated by {k}: {fs / k:.4g} Hz, Nyquist {fs / (2 * k):.4g} Hz")
+    sl = slice(0, None, k)
+    grid, qf, qd, qdd, tau = grid[sl], qf[sl], qd[sl], qdd[sl], tau[sl]
+    if stiction_threshold is None:
+        threshold = default_stiction_threshold(
+            qd, resolution_rad=resolution_rad, sample_period_s=dt
+        )
+    else:
+        threshold = np.broadcast_to(np.asarray(stiction_threshold, float), qd.shape[1:])
+    stuck = stiction_mask(qd, threshold)
+    edge = 1.0 / cutoff_hz if edge_s is None else float(edge_s)
+    inside = (grid >= grid[0] + edge) & (grid <= grid[-1] - edge)
+    notes.append(
+        f"stiction threshold {np.array2string(threshold, precision=4)} rad/s: "
+        f"{int(stuck.sum())} of {len(stuck)} samples flagged"
+    )
+    return Conditioned(
+        grid,
+        qf,
+        qd,
+        qdd,
+        tau,
+        inside & ~stuck,
+        stuck,
+        np.array(threshold),
+        float(cutoff_hz),
+        k,
+        unit,
+        notes,
+    )

@@ -1,0 +1,57 @@
+"""Unit conversions: encoder counts -> joint radians, motor current -> joint torque."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def counts_per_joint_rev(description) -> np.ndarray:
+    """Encoder counts per joint revolution (n,) = encoder counts_per_rev * gear ratio.
+
+    ``description`` is a ChainDescription; every joint needs an encoder (counts per *motor*
+    revolution after decoding); a joint without a drive has gear ratio 1.
+    """
+    out = []
+    for joint in description.joints:
+        if joint.encoder is None:
+            raise ValueError(f"joint {joint.name!r} has no encoder in the description")
+        ratio = joint.drive.gear_ratio if joint.drive is not None else 1.0
+        out.append(joint.encoder.counts_per_rev * ratio)
+    return np.asarray(out, dtype=float)
+
+
+def counts_to_rad(counts, counts_per_rev) -> np.ndarray:
+    """Joint angles [rad] from encoder counts (N, n).
+
+    Parameters
+    ----------
+    counts : array_like (N, n) or (n,)
+        Encoder counts (the motor-shaft encoder, decoded).
+    counts_per_rev : array_like (n,) or scalar, or a ChainDescription
+        Counts per *joint* revolution; a description is converted with
+        :func:`counts_per_joint_rev`.
+    """
+    if hasattr(counts_per_rev, "joints"):
+        counts_per_rev = counts_per_joint_rev(counts_per_rev)
+    return np.asarray(counts, dtype=float) * (2.0 * np.pi / np.asarray(counts_per_rev, float))
+
+
+def drive_gain(description) -> np.ndarray:
+    """Current-to-torque gain (n,) [N m/A]: N * eta * kt per joint (DESIGN.md section 3).
+
+    Raises ValueError if a joint has no drive (its effort is not a motor current).
+    """
+    out = []
+    for joint in description.joints:
+        if joint.drive is None:
+            raise ValueError(f"joint {joint.name!r} has no drive: no current-to-torque gain")
+        d = joint.drive
+        out.append(d.gear_ratio * d.efficiency * d.kt)
+    return np.asarray(out, dtype=float)
+
+
+def current_to_torque(current, gain) -> np.ndarray:
+    """Joint torque [N m] = gain [N m/A] * current [A], gain scalar, (n,) or a description."""
+    if hasattr(gain, "joints"):
+        gain = drive_gain(gain)
+    return np.asarray(current, dtype=float) * np.asarray(gain, dtype=float)

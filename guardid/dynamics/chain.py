@@ -1,0 +1,142 @@
+"""ChainModel: dynamics of a serial chain described by a ChainDescription.
+
+Parameter vector (p,): per link j (1-based) XXj XYj XZj YYj YZj ZZj MXj MYj MZj Mj
+(inertia tensor about the origin of standard-DH frame j [kg m^2], first moments m*c [kg m],
+mass [kg]); then per joint with a drive Iaj = N^2 J_rotor [kg m^2]; then per joint with
+friction Fvj [N m s/rad] Fcj [N m] Foj [N m].
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+import numpy as np
+
+from guardid.dynamics import codegen
+from guardid.dynamics.base import BaseParameters, compute_base
+from guardid.dynamics.newton_euler import link_physical, rnea
+from guardid.robot.description import STANDARD_NAMES, ChainDescription
+
+
+class ChainModel:
+    """Rigid-body + drive + friction model of a serial chain (see module docstring)."""
+
+    def __init__(self, description: ChainDescription):
+        self.description = description
+        self.n_dof = description.n_dof
+        self.joint_names = [j.name for j in description.joints]
+        n = self.n_dof
+        names = [f"{s}{k + 1}" for k in range(n) for s in STANDARD_NAMES]
+        values = [v for link in description.links for v in link.standard_parameters()]
+        self._ia_index: list[int | None] = [None] * n
+        for j, joint in enumerate(description.joints):
+            if joint.drive is not None:
+                self._ia_index[j] = len(names)
+                names.append(f"Ia{j + 1}")
+                values.append(joint.drive.reflected_inertia)
+        self._fric_index: list[int | None] = [None] * n
+        for j, joint in enumerate(description.joints):
+            if joint.friction is not None:
+                self._fric_index[j] = len(names)
+                fr = joint.friction
+                names += [f"Fv{j + 1}", f"Fc{j + 1}", f"Fo{j + 1}"]
+                values += [fr.viscous, fr.coulomb, fr.offset]
+        self.param_names = names
+        self.params = np.array(values, dtype=float)
+        self.known_zero = [
+            names.index(f"{s}{k + 1}")
+            for k, link in enumerate(description.links)
+            for s in link.known_zero
+        ]
+        self._rigid = codegen.compile_source(
+            codegen.vector_regressor_source(description),
+            "rigid_regressor",
+            codegen.NAMESPACE_VECTOR,
+        )
+        fast_ns = dict(codegen.NAMESPACE_SCALAR, P0=self.params.tolist())
+        src = codegen.fast_sources(description, self._ia_index)
+        self.mass_matrix_1 = codegen.compile_source(src, "mass_matrix_1", fast_ns)
+        self.bias_1 = codegen.compile_source(src, "bias_1", fast_ns)
+        """Fast single-sample M(q) (n, n) and bias(q, qd) (n,); params default to true ones."""
+
+    # ------------------------------------------------------------------ regressor
+    def regressor(self, q, qd, qdd) -> np.ndarray:
+        """Y (N, n, p) with joint torque = Y @ params (incl. rotor inertia and friction)."""
+        q, qd, qdd = _states(q, qd, qdd)
+        out = np.zeros((q.shape[0], self.n_dof, len(self.param_names)))
+        self._rigid(q, qd, qdd, out)
+        for j in range(self.n_dof):
+            if self._ia_index[j] is not None:
+                out[:, j, self._ia_index[j]] = qdd[:, j]
+            k = self._fric_index[j]
+            if k is not None:
+                out[:, j, k] = qd[:, j]
+                out[:, j, k + 1] = np.sign(qd[:, j])
+                out[:, j, k + 2] = 1.0
+        return out
+
+    @cached_property
+    def base(self) -> BaseParameters:
+        """Base parameters (Gautier's QR; names, formulas, K, B)."""
+        return compute_base(self, self.known_zero)
+
+    def base_regressor(self, q, qd, qdd) -> np.ndarray:
+        """(N, n, b) regressor of the base parameters: tau = base_regressor @ base.values."""
+        return self.regressor(q, qd, qdd) @ self.base.B
+
+    def known_torque(self, q, qd, qdd) -> np.ndarray:
+        """Torque (N, n) not covered by the parameters (always zero for a chain)."""
+        q, _, _ = _states(q, qd, qdd)
+        return np.zeros_like(q)
+
+    # ------------------------------------------------------------------ dynamics
+    def _p(self, params) -> np.ndarray:
+        return self.params if params is None else np.asarray(params, dtype=float)
+
+    def inverse_dynamics(self, q, qd, qdd, params=None, friction=True) -> np.ndarray:
+        """Joint torques (N, n) by recursive Newton-Euler, plus rotor inertia and friction."""
+        q, qd, qdd = _states(q, qd, qdd)
+        p = self._p(params)
+        tau = rnea(self.description, link_physical(p, self.n_dof), q, qd, qdd)
+        return tau + self._drive_terms(p, qd, qdd, friction)
+
+    def _drive_terms(self, p, qd, qdd, friction: bool) -> np.ndarray:
+        out = np.zeros_like(qd)
+        for j in range(self.n_dof):
+            if self._ia_index[j] is not None:
+                out[:, j] += p[self._ia_index[j]] * qdd[:, j]
+            k = self._fric_index[j]
+            if friction and k is not None:
+                out[:, j] += p[k] * qd[:, j] + p[k + 1] * np.sign(qd[:, j]) + p[k + 2]
+        return out
+
+    def mass_matrix(self, q, params=None) -> np.ndarray:
+        """M(q) (N, n, n) [kg m^2 | kg], including reflected rotor inertia."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        p = self._p(params)
+        links = link_physical(p, self.n_dof)
+        zero = np.zeros_like(q)
+        cols = []
+        for i in range(self.n_dof):
+            e = np.zeros_like(q)
+            e[:, i] = 1.0
+            col = rnea(self.description, links, q, zero, e, gravity=False)
+            cols.append(col + self._drive_terms(p, zero, e, friction=False))
+        return np.stack(cols, axis=2)
+
+    def bias(self, q, qd, params=None) -> np.ndarray:
+        """Coriolis + centrifugal + gravity torques (N, n), no friction."""
+        q, qd, _ = _states(q, qd, qd)
+        p = self._p(params)
+        return rnea(self.description, link_physical(p, self.n_dof), q, qd, np.zeros_like(q))
+
+    def forward_dynamics(self, q, qd, tau, params=None) -> np.ndarray:
+        """Joint accelerations qdd = M^-1 (tau - bias) (N, n), no friction."""
+        m = self.mass_matrix(q, params)
+        rhs = np.atleast_2d(np.asarray(tau, dtype=float)) - self.bias(q, qd, params)
+        return np.linalg.solve(m, rhs[..., None])[..., 0]
+
+
+def _states(q, qd, qdd):
+    q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
+    return q, qd, qdd

@@ -1,0 +1,74 @@
+"""Gradient estimator (seed 000 eq. 4), the gain-tuned baseline.
+
+dtheta/dt = -eta grad_theta(e^T e) = 2 eta A^T (y - A theta), integrated by explicit Euler
+with A, y held over each sample period dt: theta += 2 eta dt A_k^T (y_k - A_k theta).
+It diverges when 2 eta dt lambda_max(A_k^T A_k) is too large: divergence is detected
+(non-finite or |theta| > ``blowup``) and reported in ``diverged_`` / ``diverged_at_``; the
+offline run stops there and ``theta_`` keeps the last (huge) value.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._base import Estimator, as_blocks, as_sample
+
+_CHECK = 64  # offline divergence check stride (samples)
+
+
+class Gradient(Estimator):
+    """Parameters: ``eta`` gain (1 / (unit of A^2 s)), ``dt`` sample period s, ``theta0``,
+    ``history_every``, ``blowup`` divergence threshold on max |theta|.
+    Attributes: ``theta_``, ``diverged_``, ``diverged_at_`` (sample count or None),
+    ``n_samples_``, ``history_``, ``history_samples_``.
+    """
+
+    def __init__(self, eta=1e-2, dt=1.0, theta0=None, history_every=10, blowup=1e100):
+        self.eta, self.dt, self.theta0 = float(eta), float(dt), theta0
+        self.history_every, self.blowup = int(history_every), float(blowup)
+
+    def _init_state(self, p):
+        self.theta_ = np.zeros(p) if self.theta0 is None else np.array(self.theta0, dtype=float)
+        self.diverged_, self.diverged_at_, self.n_samples_ = False, None, 0
+
+    def _check(self):
+        if not self.diverged_ and not np.max(np.abs(self.theta_)) < self.blowup:
+            self.diverged_, self.diverged_at_ = True, self.n_samples_
+
+    def update(self, A_k, y_k):
+        """One explicit Euler step for sample A_k (n_out, p), y_k (n_out,)."""
+        A_k, y_k = as_sample(A_k, y_k)
+        if not hasattr(self, "theta_"):
+            self._init_state(A_k.shape[1])
+        with np.errstate(over="ignore", invalid="ignore"):
+            self.theta_ = self.theta_ + (2 * self.eta * self.dt) * (
+                A_k.T @ (y_k - A_k @ self.theta_)
+            )
+        self.n_samples_ += 1
+        self._check()
+        return self
+
+    def fit(self, A, y):
+        """Run from theta0 over the log; stops at detected divergence."""
+        A3, y2 = as_blocks(A, y)
+        N, n, p = A3.shape
+        self._init_state(p)
+        gAT = (2 * self.eta * self.dt) * A3.transpose(0, 2, 1)
+        th, hist, counts = self.theta_, [], []
+        every = max(self.history_every, 1)
+        with np.errstate(over="ignore", invalid="ignore"):
+            for i in range(N):
+                th = th + gAT[i] @ (y2[i] - A3[i] @ th)
+                if (i + 1) % every == 0:
+                    hist.append(th)
+                    counts.append(i + 1)
+                if (i + 1) % _CHECK == 0 and not np.max(np.abs(th)) < self.blowup:
+                    self.theta_, self.n_samples_ = th, i + 1
+                    self._check()
+                    break
+        self.theta_ = th
+        self.n_samples_ = self.diverged_at_ or N
+        self._check()
+        self.history_ = np.array(hist) if hist else np.empty((0, p))
+        self.history_samples_ = np.array(counts, dtype=int)
+        return self

@@ -1,0 +1,138 @@
+"""Ordinary (LS) and weighted (WLS, Gautier's IDIM-WLS) least squares.
+
+Batch solve by Householder QR of the stacked regressor (never the normal equations).
+``update`` keeps the square-root information form: the triangular factor R and z = Q^T y are
+updated by a QR of [R; A_k] (p + n_out rows), so the online path is as well conditioned as
+the batch one and costs O(p^3) per sample.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import qr, solve_triangular
+
+from ._base import Estimator, as_blocks, as_sample
+
+
+class LeastSquares(Estimator):
+    """Ordinary least squares with parameter statistics.
+
+    Attributes after ``fit``: ``theta_`` (p,); ``std_`` (p,) standard deviations from
+    sigma^2 (A^T A)^-1 with sigma^2 = ||r||^2 / (M - p) (same unit as theta); ``rel_std_``
+    (p,) 100 std / |theta| in %; ``cov_`` (p, p); ``cond_`` condition number of the
+    (weighted) stacked A; ``residual_rms_`` rms of the residual over all rows (unit of y);
+    ``residual_rms_per_output_`` (n_out,); ``n_rows_`` M; ``n_samples_`` N.
+    """
+
+    def __init__(self):
+        self._w = None  # per-output row weights (1 for OLS)
+
+    # -- core on the weighted stacked system -------------------------------------------
+    def _solve_stacked(self, Aw: np.ndarray, yw: np.ndarray) -> None:
+        # QR of the augmented [A y]: R_aug = [[R, z], [0, rho]], ||r|| = |rho|.
+        p = Aw.shape[1]
+        Raug = qr(np.column_stack([Aw, yw]), mode="r", check_finite=False)[0]
+        self.R_ = Raug[:p, :p]
+        self.z_ = Raug[:p, p]
+        self.n_rows_ = Aw.shape[0]
+        self._finish()
+        self.rss_ = float(Raug[p, p] ** 2) if Raug.shape[0] > p else 0.0
+        self._stats()
+
+    def _finish(self) -> None:
+        R = self.R_
+        d = np.abs(np.diag(R))
+        if d.size and d.min() > 1e-14 * max(d.max(), 1e-300):
+            self.theta_ = solve_triangular(R, self.z_)
+        else:
+            self.theta_ = np.linalg.lstsq(R, self.z_, rcond=None)[0]
+
+    def _stats(self) -> None:
+        p = self.R_.shape[1]
+        dof = self.n_rows_ - p
+        self.sigma2_ = self.rss_ / dof if dof > 0 else np.nan
+        sv = np.linalg.svd(self.R_, compute_uv=False)
+        self.cond_ = float(sv[0] / sv[-1]) if sv[-1] > 0 else np.inf
+        try:
+            Rinv = solve_triangular(self.R_, np.eye(p))
+        except np.linalg.LinAlgError:
+            Rinv = np.full((p, p), np.nan)
+        self.cov_ = self.sigma2_ * (Rinv @ Rinv.T)
+        self.std_ = np.sqrt(np.diag(self.cov_))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            self.rel_std_ = 100.0 * self.std_ / np.abs(self.theta_)
+
+    def fit(self, A, y):
+        """Fit on A (N, n_out, p) / y (N, n_out) or stacked A (M, p) / y (M,)."""
+        A3, y2 = as_blocks(A, y)
+        N, n, p = A3.shape
+        self.n_samples_ = N
+        w = np.ones(n) if self._w is None or self._w.shape != (n,) else self._w
+        self._w = w
+        Aw = (A3 * w[None, :, None]).reshape(N * n, p)
+        yw = (y2 * w).reshape(N * n)
+        self._solve_stacked(Aw, yw)
+        raw = y2 - A3 @ self.theta_
+        self.residual_rms_per_output_ = np.sqrt(np.mean(raw**2, axis=0))
+        self.residual_rms_ = float(np.sqrt(np.mean(raw**2)))
+        return self
+
+    def update(self, A_k, y_k):
+        """Add one sample (n_out rows) by a QR update of the square-root information."""
+        A_k, y_k = as_sample(A_k, y_k)
+        n, p = A_k.shape
+        if not hasattr(self, "R_"):
+            self.R_, self.z_ = np.zeros((p, p)), np.zeros(p)
+            self.rss_, self.n_rows_, self.n_samples_ = 0.0, 0, 0
+        w = np.ones(n) if self._w is None or self._w.shape != (n,) else self._w
+        self._w = w
+        new = np.column_stack([A_k, y_k]) * w[:, None]
+        stack = np.vstack([np.column_stack([self.R_, self.z_]), new])
+        Rfull = np.linalg.qr(stack, mode="r")
+        self.R_ = Rfull[:p, :p]
+        self.z_ = Rfull[:p, p]
+        # Rows below p of the last column carry the new residual energy.
+        if Rfull.shape[0] > p:
+            self.rss_ += float(np.sum(Rfull[p:, p] ** 2))
+        self.n_rows_ += n
+        self.n_samples_ += 1
+        self._finish()
+        self._stats()
+        # Exact for OLS; for WLS this is the rms of the weighted residual.
+        self.residual_rms_ = float(np.sqrt(self.rss_ / self.n_rows_))
+        return self
+
+
+class WeightedLeastSquares(LeastSquares):
+    """Gautier's IDIM-WLS: each output (joint) row group weighted by 1 / sigma_j.
+
+    A first OLS pass gives per-output residual variances sigma_j^2 = ||r_j||^2 / (N - p_j),
+    p_j the number of parameters whose column is not identically zero in output j's rows.
+    The weighted system (rows of output j divided by sigma_j) is then solved by QR;
+    ``std_`` comes from s^2 ((W A)^T W A)^-1 with s^2 = ||W r||^2 / (M - p) (about 1 when the
+    noise model holds). ``sigma_per_output_`` (n_out,) holds sigma_j (unit of y), ``weights_``
+    their inverses. ``update`` keeps the weights of the last ``fit`` (1 before any fit).
+    ``n_iter`` > 1 re-estimates sigma_j from the weighted fit's residuals (iterated WLS); the
+    default 1 is Gautier's single pass, whose sigma_j of the quieter outputs is inflated by
+    the OLS pass.
+    """
+
+    def __init__(self, n_iter: int = 1):
+        super().__init__()
+        self.n_iter = int(n_iter)
+
+    def fit(self, A, y):
+        A3, y2 = as_blocks(A, y)
+        N, n, p = A3.shape
+        self._w = np.ones(n)
+        super().fit(A3, y2)
+        p_j = np.count_nonzero(np.any(A3 != 0, axis=0), axis=1)
+        dof = np.maximum(N - p_j, 1)
+        for _ in range(max(self.n_iter, 1)):
+            r = y2 - A3 @ self.theta_
+            sig = np.sqrt(np.sum(r**2, axis=0) / dof)
+            sig = np.where(sig > 0, sig, max(float(sig.max()), 1e-300))
+            self.sigma_per_output_ = sig
+            self.weights_ = self._w = 1.0 / sig
+            super().fit(A3, y2)
+        return self

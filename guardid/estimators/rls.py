@@ -1,0 +1,131 @@
+"""Recursive least squares with forgetting (seed 001 eqs. 5-7, multi-output gain).
+
+Online, per sample (phi = A_k^T, shape (p, n_out)):
+    K = P phi (lambda I + phi^T P phi)^-1,  theta += K (y_k - phi^T theta),
+    P = (P - K phi^T P) / lambda.
+The n_out x n_out inverse is closed-form for n_out <= 2, ``np.linalg.solve`` otherwise.
+
+Offline (``fit``) uses the information form, which is algebraically identical:
+    R_k = lambda R_{k-1} + phi phi^T,  b_k = lambda b_{k-1} + phi y_k,  theta_k = R_k^-1 b_k,
+with R_0 = P0^-1, b_0 = P0^-1 theta0. The samples between two history checkpoints are
+reduced to one (p, p) / (p,) sum by a batched matrix product (rows weighted by
+lambda^(k_end - k)); the checkpoint values inside a chunk come from one cumulative sum of the
+segment sums scaled by lambda^-(segment end) (chunks are kept short enough that this
+scaling stays below 1e100), and one batched solve per chunk gives theta at every checkpoint.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._base import Estimator, as_blocks, as_sample, checkpoints
+
+_CHUNK_ROWS = 16384  # stacked rows per offline chunk (memory bound)
+
+
+class RLS(Estimator):
+    """Recursive least squares.
+
+    Parameters: ``lam`` forgetting factor in (0, 1]; ``p0`` initial covariance (scalar ->
+    p0 I, or (p, p)), in (unit of theta / unit of y)^2 per unit weight; ``theta0`` initial
+    estimate (p,) (zeros if None); ``history_every`` offline history stride (samples).
+    Attributes: ``theta_`` (p,), ``P_`` (p, p) covariance-like matrix, ``n_samples_``,
+    ``history_`` (n_hist, p), ``history_samples_`` (n_hist,).
+    """
+
+    def __init__(self, lam: float = 1.0, p0=1e6, theta0=None, history_every: int = 10):
+        if not 0.0 < lam <= 1.0:
+            raise ValueError("lam must be in (0, 1]")
+        self.lam = float(lam)
+        self.p0 = p0
+        self.theta0 = theta0
+        self.history_every = int(history_every)
+
+    def _init_state(self, p: int) -> None:
+        p0 = np.asarray(self.p0, dtype=float)
+        self.P_ = p0 * np.eye(p) if p0.ndim == 0 else p0.copy()
+        self.theta_ = np.zeros(p) if self.theta0 is None else np.array(self.theta0, dtype=float)
+        self.n_samples_ = 0
+
+    # -- online --------------------------------------------------------------------------
+    def update(self, A_k, y_k):
+        """One sample: A_k (n_out, p) or (p,), y_k (n_out,) or scalar."""
+        A_k, y_k = as_sample(A_k, y_k)
+        if not hasattr(self, "P_"):
+            self._init_state(A_k.shape[1])
+        P, lam = self.P_, self.lam
+        PA = P @ A_k.T  # (p, n)
+        S = A_k @ PA  # (n, n)
+        e = y_k - A_k @ self.theta_
+        n = A_k.shape[0]
+        if n == 1:
+            K = PA / (lam + S[0, 0])
+        elif n == 2:
+            a, b, c, d = S.ravel().tolist()
+            a += lam
+            d += lam
+            det = a * d - b * c
+            K = PA @ np.array([[d, -b], [-c, a]]) / det
+        else:
+            K = np.linalg.solve(S + lam * np.eye(n), PA.T).T
+        self.theta_ = self.theta_ + K @ e
+        P = P - K @ PA.T
+        if lam != 1.0:
+            P /= lam
+        self.n_samples_ += 1
+        if self.n_samples_ % 64 == 0:  # remove the slow asymmetric round-off drift
+            P = 0.5 * (P + P.T)
+        self.P_ = P
+        return self
+
+    # -- offline -------------------------------------------------------------------------
+    def fit(self, A, y):
+        """Run RLS from the initial state over the whole log (fast information form)."""
+        A3, y2 = as_blocks(A, y)
+        N, n, p = A3.shape
+        self._init_state(p)
+        R = np.linalg.inv(self.P_)
+        b = R @ self.theta_
+        k = max(self.history_every, 1)
+        lam = self.lam
+        loglam = -np.log(lam)
+        w_seg = lam ** np.arange(k - 1, -1, -1.0) if lam < 1 else None
+        seg_per_chunk = max(1, _CHUNK_ROWS // (k * n))
+        if lam < 1:
+            seg_per_chunk = max(1, min(seg_per_chunk, int(230.0 / (k * loglam))))
+        n_full = N // k
+        hist = []
+        for s0 in range(0, n_full, seg_per_chunk):
+            m = min(seg_per_chunk, n_full - s0)
+            Ac = A3[s0 * k : (s0 + m) * k].reshape(m, k * n, p)
+            yc = y2[s0 * k : (s0 + m) * k].reshape(m, k * n)
+            if w_seg is not None:
+                Aw = Ac * np.repeat(w_seg, n)[None, :, None]
+            else:
+                Aw = Ac
+            AwT = Aw.transpose(0, 2, 1)
+            G = AwT @ Ac  # (m, p, p)
+            g = (AwT @ yc[:, :, None])[:, :, 0]  # (m, p)
+            if lam < 1:
+                decay = np.exp(-loglam * k * np.arange(1, m + 1))  # lambda^(k (c+1))
+                Rc = decay[:, None, None] * (R + np.cumsum(G / decay[:, None, None], axis=0))
+                bc = decay[:, None] * (b + np.cumsum(g / decay[:, None], axis=0))
+            else:
+                Rc = R + np.cumsum(G, axis=0)
+                bc = b + np.cumsum(g, axis=0)
+            hist.append(np.linalg.solve(Rc, bc[:, :, None])[:, :, 0])
+            R, b = Rc[-1], bc[-1]
+        t = N - n_full * k
+        if t:
+            At = A3[n_full * k :].reshape(t * n, p)
+            yt = y2[n_full * k :].reshape(t * n)
+            wt = np.repeat(lam ** np.arange(t - 1, -1, -1.0), n)
+            R = lam**t * R + (At.T * wt) @ At
+            b = lam**t * b + (At.T * wt) @ yt
+        self.history_ = np.concatenate(hist) if hist else np.empty((0, p))
+        self.history_samples_ = checkpoints(N, k)
+        self.P_ = np.linalg.inv(R)
+        self.P_ = 0.5 * (self.P_ + self.P_.T)
+        self.theta_ = np.linalg.solve(R, b)
+        self.n_samples_ = N
+        return self

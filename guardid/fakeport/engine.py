@@ -1,0 +1,133 @@
+"""The simulated-time core of the fake link, shared by ``sim://`` ports and the pty server.
+
+Time is an integer number of nanoseconds since the link started. Events, in order at
+equal times: the disconnect, the latency-timer flush, the device tick (tick k happens at
+k * tick period). Host writes reach the device at the current time.
+"""
+
+from __future__ import annotations
+
+import serial
+
+from guardid.fakeport.device import Device
+from guardid.fakeport.faults import Corrupter, FaultConfig, FaultStats, LatencyBuffer
+
+
+class Disconnected(serial.SerialException):
+    """The emulated link is gone (``... port disconnected``)."""
+
+
+class LinkEngine:
+    """A device plus a faulty link, advanced event by event in simulated time."""
+
+    def __init__(self, device: Device, faults: FaultConfig, seed: int, name: str = "sim") -> None:
+        self.device = device
+        self.name = name
+        self.tick_ns = round(float(device.tick_period_s) * 1e9)
+        if self.tick_ns <= 0:
+            raise ValueError(f"device tick_period_s must be > 0, got {device.tick_period_s!r}")
+        self.now_ns = 0
+        self.ticks = 0
+        self.stats = FaultStats()
+        down_seed, up_seed = (seed, 0), (seed, 1)
+        self._down = Corrupter(faults.drop, faults.flip, down_seed, self.stats.down)
+        up_drop, up_flip = (faults.drop, faults.flip) if faults.upstream else (0.0, 0.0)
+        self._up = Corrupter(up_drop, up_flip, up_seed, self.stats.up)
+        latency_ns = round(faults.latency_s * 1e9)
+        self._latency = LatencyBuffer(latency_ns, faults.packet_bytes) if latency_ns > 0 else None
+        self._disconnect_ns = (
+            None if faults.disconnect_s is None else round(faults.disconnect_s * 1e9)
+        )
+        self.disconnected = False
+        self.rx = bytearray()  # delivered to the host, not yet read
+
+    @property
+    def now_s(self) -> float:
+        """Simulated time [s]."""
+        return self.now_ns * 1e-9
+
+    @property
+    def pending_bytes(self) -> int:
+        """Bytes held in the latency buffer (not yet visible to the host)."""
+        return len(self._latency.buffer) if self._latency else 0
+
+    @property
+    def disconnect_pending(self) -> bool:
+        """True when a disconnect is scheduled and has not happened yet."""
+        return self._disconnect_ns is not None and not self.disconnected
+
+    def next_event_ns(self) -> int | None:
+        """Time [ns] of the next event, or None when nothing will ever happen."""
+        if self.disconnected:
+            return None
+        times = [(self.ticks + 1) * self.tick_ns]
+        if self._latency is not None and self._latency.deadline_ns is not None:
+            times.append(self._latency.deadline_ns)
+        if self._disconnect_ns is not None:
+            times.append(self._disconnect_ns)
+        return min(times)
+
+    def step(self) -> None:
+        """Run the next event (all parts due at its time)."""
+        t = self.next_event_ns()
+        if t is None:
+            return
+        self.now_ns = max(self.now_ns, t)
+        if self._disconnect_ns is not None and t >= self._disconnect_ns:
+            self._disconnect()
+            return
+        lat = self._latency
+        if lat is not None and lat.deadline_ns is not None and lat.deadline_ns <= t:
+            self._deliver(lat.flush())
+        if (self.ticks + 1) * self.tick_ns <= t:
+            self.ticks += 1
+            self.device.advance()
+            self._emit(self.device.take_output())
+
+    def advance_to(self, t_ns: int) -> None:
+        """Run every event due at or before ``t_ns``; then the clock reads ``t_ns``."""
+        while (e := self.next_event_ns()) is not None and e <= t_ns:
+            self.step()
+        self.now_ns = max(self.now_ns, t_ns)
+
+    def advance_until_output(self, max_ns: int) -> None:
+        """Run events until bytes reach the host, the link dies, or ``max_ns`` elapse."""
+        start = self.now_ns
+        while not self.rx and (e := self.next_event_ns()) is not None and e - start <= max_ns:
+            self.step()
+
+    def host_write(self, data: bytes) -> None:
+        """Bytes from the host reach the device now; its responses enter the link."""
+        if self.disconnected:
+            raise Disconnected(f"{self.name}: port disconnected")
+        data = self._up.apply(bytes(data))
+        if data:
+            self.device.receive(data)
+            self._emit(self.device.take_output())
+
+    def take(self, size: int | None = None) -> bytes:
+        """Remove and return up to ``size`` delivered bytes (all when None)."""
+        n = len(self.rx) if size is None else min(size, len(self.rx))
+        out = bytes(self.rx[:n])
+        del self.rx[:n]
+        return out
+
+    def _emit(self, raw: bytes) -> None:
+        if not raw:
+            return
+        data = self._down.apply(raw)
+        if self._latency is not None:
+            data = self._latency.push(data, self.now_ns)
+        self._deliver(data)
+
+    def _deliver(self, data: bytes) -> None:
+        if data:
+            self.rx += data
+            if self._latency is not None:
+                self.stats.bursts.append((self.now_s, len(data)))
+
+    def _disconnect(self) -> None:
+        self.disconnected = True
+        self.stats.disconnected_at_s = self.now_s
+        if self._latency is not None:
+            self.stats.down.bytes_lost_at_disconnect += len(self._latency.flush())

@@ -1,0 +1,50 @@
+"""How a ``sim://`` port gets its device: a pluggable factory (the firmware emulator)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+
+from guardid.fakeport.device import Device, EchoDevice
+from guardid.fakeport.options import SimOptions, SimUrlError
+
+DeviceFactory = Callable[[str, SimOptions], Device]
+
+#: Environment variable selecting a built-in test device by name (e.g. ``echo``).
+DEVICE_ENV = "GUARDID_FAKEPORT_DEVICE"
+
+NAMED_DEVICES: dict[str, DeviceFactory] = {
+    "echo": lambda robot, options: EchoDevice(),
+}
+
+_factory: DeviceFactory | None = None
+
+
+def register_device_factory(factory: DeviceFactory | None) -> DeviceFactory | None:
+    """Install ``factory(robot, options) -> Device`` (None removes it); return the old one."""
+    global _factory
+    old, _factory = _factory, factory
+    return old
+
+
+def make_device(robot: str, options: SimOptions, name: str | None = None) -> Device:
+    """Build the device for ``robot``.
+
+    Order: a built-in named device (``name`` or ``$GUARDID_FAKEPORT_DEVICE``), then the
+    registered factory, else the Python firmware emulator on the simulated plant.
+    """
+    name = name or os.environ.get(DEVICE_ENV) or None
+    if name is not None:
+        if name not in NAMED_DEVICES:
+            known = ", ".join(sorted(NAMED_DEVICES))
+            raise SimUrlError(f"device {name!r}: unknown test device (known: {known})")
+        return NAMED_DEVICES[name](robot, options)
+    if _factory is not None:
+        return _factory(robot, options)
+    if options.firmware != "py":
+        raise SimUrlError(
+            f"firmware={options.firmware}: the C firmware core is not available yet (use py)"
+        )
+    from guardid.firmware import make_sim_device
+
+    return make_sim_device(robot, options)

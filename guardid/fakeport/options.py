@@ -1,0 +1,146 @@
+"""The ``sim://`` URL grammar and its validation.
+
+``sim://<robot name or YAML path>?seed=1&pacing=lockstep|realtime|<factor>&noise=1|0
+&payload_time=30&payload_mass=1.0&payload_com=0.12,0.02,0&drop=1e-4&flip=1e-5
+&latency_ms=16&disconnect_s=40&firmware=py|c&upstream=0|1``
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from urllib.parse import parse_qsl
+
+from guardid.errors import LinkError
+from guardid.fakeport.faults import FaultConfig
+
+
+class SimUrlError(LinkError, ValueError):
+    """A ``sim://`` URL or fake-port option is invalid (names the option)."""
+
+
+@dataclass(frozen=True)
+class SimOptions:
+    """Parsed options; times in s, mass in kg, lengths in m, rates are probabilities."""
+
+    robot: str = "guard"
+    seed: int = 0
+    pacing: float | None = None  # None = lock-step; otherwise real-time speed factor
+    noise: bool = True
+    payload_time: float | None = None  # [s] simulated time the payload is attached
+    payload_mass: float = 0.0  # [kg]
+    payload_com: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [m]
+    firmware: str = "py"
+    faults: FaultConfig = field(default_factory=FaultConfig)
+
+    @property
+    def lockstep(self) -> bool:
+        """True for lock-step pacing."""
+        return self.pacing is None
+
+
+def _float(lo: float | None = None, lo_open: bool = False, hi: float | None = None):
+    def conv(text: str) -> float:
+        value = float(text)
+        if not math.isfinite(value):
+            raise ValueError("must be finite")
+        if lo is not None and (value < lo or (lo_open and value == lo)):
+            raise ValueError(f"must be {'>' if lo_open else '>='} {lo:g}")
+        if hi is not None and value > hi:
+            raise ValueError(f"must be <= {hi:g}")
+        return value
+
+    return conv
+
+
+def _bool(text: str) -> bool:
+    if text not in ("0", "1"):
+        raise ValueError("must be 0 or 1")
+    return text == "1"
+
+
+def _pacing(text: str) -> float | None:
+    if text == "lockstep":
+        return None
+    if text == "realtime":
+        return 1.0
+    try:
+        return _float(0.0, lo_open=True)(text)
+    except ValueError:
+        raise ValueError("must be lockstep, realtime or a speed factor > 0") from None
+
+
+def _seed(text: str) -> int:
+    value = int(text)
+    if value < 0:
+        raise ValueError("must be >= 0")
+    return value
+
+
+def _com(text: str) -> tuple[float, float, float]:
+    parts = [_float()(p) for p in text.split(",")]
+    if len(parts) != 3:
+        raise ValueError("must be three comma-separated numbers x,y,z [m]")
+    return (parts[0], parts[1], parts[2])
+
+
+def _firmware(text: str) -> str:
+    if text not in ("py", "c"):
+        raise ValueError("must be py or c")
+    return text
+
+
+_PARSERS: dict[str, Callable[[str], object]] = {
+    "seed": _seed,
+    "pacing": _pacing,
+    "noise": _bool,
+    "payload_time": _float(0.0),
+    "payload_mass": _float(0.0),
+    "payload_com": _com,
+    "drop": _float(0.0, hi=1.0),
+    "flip": _float(0.0, hi=1.0),
+    "latency_ms": _float(0.0),
+    "disconnect_s": _float(0.0, lo_open=True),
+    "firmware": _firmware,
+    "upstream": _bool,
+}
+OPTION_NAMES = tuple(_PARSERS)
+
+
+def parse_options(
+    robot: str, raw: Mapping[str, str], label: Callable[[str], str] = str
+) -> SimOptions:
+    """Validate raw option strings; ``label`` renders an option name in error messages."""
+    values: dict[str, object] = {}
+    for name, text in raw.items():
+        if name not in _PARSERS:
+            known = ", ".join(OPTION_NAMES)
+            raise SimUrlError(f"{label(name)}: unknown option (known: {known})")
+        try:
+            values[name] = _PARSERS[name](text)
+        except ValueError as exc:
+            raise SimUrlError(f"{label(name)}={text!r}: {exc}") from None
+    latency = values.pop("latency_ms", 0.0)
+    faults = FaultConfig(
+        drop=values.pop("drop", 0.0),
+        flip=values.pop("flip", 0.0),
+        latency_s=latency / 1000.0,
+        disconnect_s=values.pop("disconnect_s", None),
+        upstream=values.pop("upstream", False),
+    )
+    return SimOptions(robot=robot or "guard", faults=faults, **values)
+
+
+def parse_sim_url(url: str) -> SimOptions:
+    """Parse ``sim://robot?opt=value&...``; raise :class:`SimUrlError` naming the option."""
+    scheme, sep, rest = url.partition("://")
+    if not sep or scheme.lower() != "sim":
+        raise SimUrlError(f"{url!r}: expected a URL of the form sim://<robot>?<options>")
+    robot, _, query = rest.partition("?")
+    raw: dict[str, str] = {}
+    for name, text in parse_qsl(query, keep_blank_values=True, strict_parsing=False):
+        if name in raw:
+            raise SimUrlError(f"{name}: given twice in {url!r}")
+        raw[name] = text
+    return parse_options(robot, raw)

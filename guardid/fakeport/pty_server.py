@@ -1,0 +1,165 @@
+"""Serve a device on a pseudo-terminal, for hosts that open a real port path.
+
+Lock-step over the pty (the rule that makes a host that answers every burst of
+telemetry see the same device tick sequence as through ``sim://`` in lock-step):
+
+* the clock stands still until the host has written its first byte (pyserial flushes
+  the input when it opens the pty, so the device must not emit before);
+* the server makes a STEP -- runs events until bytes reach the host, exactly what a
+  lock-step ``sim://`` read() short of data does -- only when all of these hold:
+  the device wants time (:func:`~guardid.fakeport.device.wants_time`); everything sent
+  has been written to the pty and consumed by the host (FIONREAD on the slave is 0,
+  checked twice 1 ms apart); the host has written at least one byte since the previous
+  step (its answer) and then stayed silent for ``settle_s``;
+* fallback for hosts that never answer: after ``idle_s`` of host silence with all
+  output consumed the server steps anyway (then the tick sequence depends on timing;
+  ``idle_s = 0`` disables the fallback).
+
+Host bytes reach the device as soon as they arrive. Real-time pacing: events run on
+the wall clock (times the factor) from the host's first byte on. A simulated disconnect
+closes the master side, which the host sees as a SerialException on read.
+"""
+
+from __future__ import annotations
+
+import errno
+import fcntl
+import os
+import select
+import struct
+import termios
+import time
+import tty
+from collections.abc import Callable
+
+from guardid.fakeport.device import wants_time
+from guardid.fakeport.engine import LinkEngine
+
+MAX_OUTBUF = 1 << 20  # [bytes] unread output kept for a host that does not read
+STEP_LIMIT_S = 1.0  # [s simulated] a lock-step step gives up after this long
+
+
+class PtyServer:
+    """A pseudo-terminal whose far end is ``engine``'s device."""
+
+    def __init__(
+        self,
+        engine: LinkEngine,
+        pacing: float | None = None,
+        idle_s: float = 0.1,
+        settle_s: float = 0.002,
+    ) -> None:
+        self.engine = engine
+        self.pacing = pacing
+        self.idle_s = idle_s
+        self.settle_s = settle_s
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)
+        os.set_blocking(self.master, False)
+        self.path = os.ttyname(self.slave)
+        self.overflow = 0  # [bytes] discarded because the host did not read
+        self._out = bytearray()
+
+    def close(self) -> None:
+        """Close both ends (idempotent)."""
+        for fd in (self.master, self.slave):
+            if fd >= 0:
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
+        self.master = self.slave = -1
+
+    def unread(self) -> int:
+        """Bytes the host has not consumed yet (ours plus the slave's input queue)."""
+        buf = fcntl.ioctl(self.slave, termios.FIONREAD, b"\0\0\0\0")
+        return len(self._out) + struct.unpack("i", buf)[0]
+
+    def serve(self, should_stop: Callable[[], bool]) -> str:
+        """Serve until ``should_stop()`` or a simulated disconnect; return the reason."""
+        talked = answered = False
+        last_host = last_step = time.monotonic()
+        t0 = 0.0
+        while not should_stop():
+            now = time.monotonic()
+            if self.pacing is not None and talked:
+                self.engine.advance_to(self._sim_ns(t0, now))
+                self._collect()
+            if self.engine.disconnected:
+                return self._disconnect()
+            data = self._pump(self._poll_timeout(talked, t0, now))
+            if data:
+                now = time.monotonic()
+                if not talked:
+                    talked, t0 = True, now
+                answered, last_host = True, now
+                if self.pacing is not None:
+                    self.engine.advance_to(self._sim_ns(t0, now))
+                self.engine.host_write(data)
+                self._collect()
+                continue
+            if self.pacing is not None or not talked or self._out:
+                continue
+            quiet = now - last_host
+            waited = now - max(last_host, last_step)
+            due = (answered and quiet >= self.settle_s) or (0 < self.idle_s <= waited)
+            if due and wants_time(self.engine.device) and self._drained():
+                self.engine.advance_until_output(round(STEP_LIMIT_S * 1e9))
+                self._collect()
+                answered, last_step = False, time.monotonic()
+        return "stopped"
+
+    def _drained(self) -> bool:
+        if self.unread():
+            return False
+        time.sleep(0.001)
+        return self.unread() == 0
+
+    def _sim_ns(self, t0: float, now: float) -> int:
+        return round((now - t0) * self.pacing * 1e9)
+
+    def _poll_timeout(self, talked: bool, t0: float, now: float) -> float:
+        """[s] how long poll() may block."""
+        if not talked:
+            return 0.02
+        if self.pacing is None:
+            return 0.001
+        e = self.engine.next_event_ns()
+        if e is None:
+            return 0.02
+        return min(max(t0 + e * 1e-9 / self.pacing - now, 0.0), 0.02)
+
+    def _collect(self) -> None:
+        self._out += self.engine.take()
+        if len(self._out) > MAX_OUTBUF:
+            extra = len(self._out) - MAX_OUTBUF
+            del self._out[:extra]
+            self.overflow += extra
+
+    def _pump(self, timeout_s: float) -> bytes:
+        """Write pending output, wait up to ``timeout_s`` for host bytes, return them."""
+        poller = select.poll()
+        poller.register(self.master, select.POLLIN | (select.POLLOUT if self._out else 0))
+        got = bytearray()
+        for _fd, mask in poller.poll(timeout_s * 1000.0):
+            if mask & select.POLLOUT and self._out:
+                try:
+                    del self._out[: os.write(self.master, self._out)]
+                except BlockingIOError:
+                    pass
+            if mask & select.POLLIN:
+                try:
+                    got += os.read(self.master, 4096)
+                except BlockingIOError:
+                    pass
+                except OSError as exc:  # EIO: nobody has the slave open (we do)
+                    if exc.errno != errno.EIO:
+                        raise
+        return bytes(got)
+
+    def _disconnect(self) -> str:
+        deadline = time.monotonic() + 0.5
+        while self._out and time.monotonic() < deadline:
+            self._pump(0.01)
+        self.close()
+        return "disconnected"

@@ -1,0 +1,337 @@
+"""Firmware emulator: the microcontroller's protocol state machine on a simulated plant.
+
+It implements the :class:`guardid.fakeport.device.Device` interface. Per tick ``k``
+(``advance``) it does what the firmware does at its 15 ms interrupt:
+
+1. read the sensors for the period that just ended (encoder counts at ``k``; motor
+   voltage and current as their means over ``k-1 .. k``, as the oversampling ADC gives);
+2. check the watchdog (moving mode and no host frame for ``watchdog_ms``: 0 V, idle,
+   watchdog bit latched, FAULT sent);
+3. take the setpoint stamped for tick ``k`` from the buffer (none: hold the last one and
+   flag ``setpoint_underrun``);
+4. compute the motor voltage (idle: 0; position: fixed-point PID; voltage: the host's
+   value), stop a joint from driving further past its position limit, quantise to the PWM
+   duty, and hold it over ``k .. k+1``;
+5. send TELEMETRY for tick ``k`` while streaming.
+
+Host frames are handled as they arrive (between ticks). Unlike the hardware, the emulator
+sends no INFO at reset: nothing is sent before the host talks, since opening a pty flushes
+its input and the unsolicited frame would only show up as a sequence gap.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+from guardid.firmware.pid import FixedPid, counts_per_joint_rev, mv_from_volts, pid_gains_q16
+from guardid.protocol import ENUMS, PROTOCOL_VERSION, Encoder, FrameParser
+from guardid.protocol import MESSAGES as M
+
+MODE = ENUMS["mode"]
+ERR = ENUMS["error"]
+SETPOINT_FLAGS = ENUMS["setpoint_flags"]
+FAULT = ENUMS["fault"]
+STATUS = ENUMS["status"]
+CAP = ENUMS["capability"]
+
+SETPOINT_DEPTH = 8  #: setpoints buffered ahead of their tick
+DEFAULT_WATCHDOG_MS = 250
+FIRMWARE_ID = 0x47554131  #: "GUA1", the Python emulator
+
+
+class FirmwareEmulator:
+    """The guard firmware's behaviour over a plant with ``step(voltages_V) -> sample``.
+
+    ``description`` is a :class:`guardid.robot.ChainDescription` whose joints all have a
+    drive and an encoder; ``plant`` advances one sample period per ``step`` and returns an
+    object with ``counts`` (encoder counts per joint, ints), ``voltage`` [V] and
+    ``current`` [A] (period means as the ADC reports them).
+    """
+
+    def __init__(self, description, plant) -> None:
+        joints = description.joints
+        if any(j.drive is None or j.encoder is None for j in joints):
+            raise ValueError(f"{description.name}: every joint needs a drive and an encoder")
+        self.description = description
+        self.plant = plant
+        self.n = len(joints)
+        self.tick_us = int(round(description.sample_period * 1e6))
+        self.tick_period_s = self.tick_us * 1e-6
+        self.cpr = [
+            counts_per_joint_rev(j.encoder.counts_per_rev, j.drive.gear_ratio) for j in joints
+        ]
+        self.supply_mv = [mv_from_volts(j.drive.supply_voltage) for j in joints]
+        self.pwm_levels = [(1 << j.drive.pwm_bits) - 1 for j in joints]
+        self.limits = [self._count_limits(j, c) for j, c in zip(joints, self.cpr, strict=True)]
+        self.pids = [FixedPid(s) for s in self.supply_mv]
+        for pid, joint, cpr in zip(self.pids, joints, self.cpr, strict=True):
+            if joint.pid is not None:
+                gains = [int(round(g * 1e6)) for g in (joint.pid.kp, joint.pid.ki, joint.pid.kd)]
+                pid.set_gains(pid_gains_q16(*gains, cpr, self.tick_us))
+
+        self.parser = FrameParser()
+        self.encoder = Encoder()
+        self._out = bytearray()
+        self.tick = 0
+        self.mode = MODE["idle"]
+        self.streaming = False
+        self.decimation = 1
+        self.estop = False
+        self.watchdog_tripped = False
+        self.watchdog_ms = DEFAULT_WATCHDOG_MS
+        self.last_host_tick = 0
+        self.buffer: deque = deque()
+        self.setpoint = [0] * self.n
+        self.setpoint_hold = True  # no underrun before the first streamed setpoint
+        self.voltage_cmd_mv = [0] * self.n
+        self.applied_mv = [0] * self.n  # after limits and PWM, held over the next period
+        self.counts = [0] * self.n
+        self.status = 0
+
+    @staticmethod
+    def _count_limits(joint, cpr: int):
+        if joint.limits.position is None:
+            return None
+        lo, hi = joint.limits.position
+        return (math.ceil(lo * cpr / (2 * math.pi)), math.floor(hi * cpr / (2 * math.pi)))
+
+    # ------------------------------------------------------------------ host side
+    def receive(self, data: bytes) -> None:
+        """Handle every whole valid frame in ``data`` (partial frames wait for more)."""
+        for frame in self.parser.feed(data):
+            self.last_host_tick = self.tick
+            handler = self._HANDLERS.get(type(frame.msg).__name__)
+            if handler is not None:
+                handler(self, frame)
+
+    def _send(self, msg) -> None:
+        self._out += self.encoder.encode(msg)
+
+    def _ack(self, frame) -> None:
+        self._send(M["ACK"](frame.seq, frame.msg_id))
+
+    def _nak(self, frame, error: str) -> None:
+        self._send(M["NAK"](frame.seq, frame.msg_id, ERR[error]))
+
+    def _on_hello(self, frame) -> None:
+        caps = sum(
+            1 << CAP[c]
+            for c in (
+                "current_sense",
+                "voltage_sense",
+                "setpoint_buffer",
+                "watchdog",
+                "voltage_mode",
+            )
+        )
+        self._send(
+            M["INFO"](
+                PROTOCOL_VERSION,
+                self.n,
+                caps,
+                FIRMWARE_ID,
+                self.tick_us,
+                self.watchdog_ms,
+                SETPOINT_DEPTH,
+                tuple(self.cpr),
+            )
+        )
+
+    def _on_ping(self, frame) -> None:
+        self._send(M["PONG"](frame.msg.nonce, self.tick & 0xFFFFFFFF))
+
+    def _on_set_mode(self, frame) -> None:
+        mode = frame.msg.mode
+        if mode not in MODE.values():
+            return self._nak(frame, "bad_value")
+        if mode != MODE["idle"] and self.estop:
+            return self._nak(frame, "estop_active")
+        if mode != self.mode or mode == MODE["voltage"]:
+            self._enter_mode(mode)
+        if mode != MODE["idle"]:
+            self.watchdog_tripped = False
+        self._ack(frame)
+
+    def _enter_mode(self, mode: int) -> None:
+        self.mode = mode
+        self.buffer.clear()
+        self.setpoint = list(self.counts)
+        self.setpoint_hold = True  # no underrun before the first streamed setpoint
+        self.voltage_cmd_mv = [0] * self.n
+        for pid in self.pids:
+            pid.reset()
+        if mode == MODE["idle"]:
+            self.applied_mv = [0] * self.n
+
+    def _on_set_pid(self, frame) -> None:
+        msg = frame.msg
+        if not 0 <= msg.joint < self.n:
+            return self._nak(frame, "bad_joint")
+        gains = pid_gains_q16(msg.kp, msg.ki, msg.kd, self.cpr[msg.joint], self.tick_us)
+        self.pids[msg.joint].set_gains(gains)
+        self._ack(frame)
+
+    def _on_setpoint(self, frame) -> None:
+        msg = frame.msg
+        if len(msg.position) != self.n:
+            return self._nak(frame, "bad_joint")
+        if self.estop:
+            return self._nak(frame, "estop_active")
+        if self.mode != MODE["position"]:
+            return self._nak(frame, "wrong_mode")
+        if msg.tick <= self.tick:
+            return self._nak(frame, "setpoint_late")
+        if self.buffer and msg.tick <= self.buffer[-1][0]:
+            return self._nak(frame, "bad_value")
+        if len(self.buffer) >= SETPOINT_DEPTH:
+            return self._nak(frame, "buffer_full")
+        hold = bool(msg.flags & (1 << SETPOINT_FLAGS["hold"]))
+        self.buffer.append((msg.tick, list(msg.position), hold))
+
+    def _on_set_voltage(self, frame) -> None:
+        msg = frame.msg
+        if len(msg.voltage) != self.n:
+            return self._nak(frame, "bad_joint")
+        if self.estop:
+            return self._nak(frame, "estop_active")
+        if self.mode != MODE["voltage"]:
+            return self._nak(frame, "wrong_mode")
+        if any(abs(v) > s for v, s in zip(msg.voltage, self.supply_mv, strict=True)):
+            return self._nak(frame, "bad_value")
+        self.voltage_cmd_mv = list(msg.voltage)
+
+    def _on_start_stream(self, frame) -> None:
+        if frame.msg.decimation < 1:
+            return self._nak(frame, "bad_value")
+        self.streaming = True
+        self.decimation = frame.msg.decimation
+        self._ack(frame)
+
+    def _on_stop_stream(self, frame) -> None:
+        self.streaming = False
+        self._ack(frame)
+
+    def _on_estop(self, frame) -> None:
+        self.estop = True
+        self._enter_mode(MODE["idle"])
+        self._ack(frame)
+        self._send(M["FAULT"](self.tick & 0xFFFFFFFF, FAULT["estop"], 0xFF, 0))
+
+    def _on_clear_estop(self, frame) -> None:
+        self.estop = False
+        self.watchdog_tripped = False
+        self._ack(frame)
+
+    def _on_set_watchdog(self, frame) -> None:
+        if frame.msg.timeout == 0:
+            return self._nak(frame, "bad_value")
+        self.watchdog_ms = frame.msg.timeout
+        self._ack(frame)
+
+    _HANDLERS = {
+        "Hello": _on_hello,
+        "Ping": _on_ping,
+        "SetMode": _on_set_mode,
+        "SetPid": _on_set_pid,
+        "Setpoint": _on_setpoint,
+        "SetVoltage": _on_set_voltage,
+        "StartStream": _on_start_stream,
+        "StopStream": _on_stop_stream,
+        "Estop": _on_estop,
+        "ClearEstop": _on_clear_estop,
+        "SetWatchdog": _on_set_watchdog,
+    }
+
+    # ------------------------------------------------------------------ the 15 ms tick
+    def advance(self) -> None:
+        """One sample period of the plant, then the firmware's tick (module docstring)."""
+        sample = self.plant.step([mv * 1e-3 for mv in self.applied_mv])
+        self.tick += 1
+        self.counts = [int(c) for c in sample.counts]
+        status = 0
+        moving = self.mode != MODE["idle"]
+        silent_ms = (self.tick - self.last_host_tick) * self.tick_us // 1000
+        if moving and silent_ms >= self.watchdog_ms:
+            self.watchdog_tripped = True
+            self._enter_mode(MODE["idle"])
+            self._send(M["FAULT"](self.tick, FAULT["watchdog"], 0xFF, silent_ms))
+            moving = False
+        if self.mode == MODE["position"]:
+            due = False
+            while self.buffer and self.buffer[0][0] <= self.tick:
+                _, self.setpoint, self.setpoint_hold = self.buffer.popleft()
+                due = True
+            if not due and not self.setpoint_hold:
+                status |= 1 << STATUS["setpoint_underrun"]
+            out = []
+            for j, pid in enumerate(self.pids):
+                out.append(pid.step(self.setpoint[j], self.counts[j]))
+                if pid.saturated:
+                    status |= 1 << STATUS[f"saturated_j{j}"]
+        elif self.mode == MODE["voltage"]:
+            out = [
+                max(-s, min(s, v)) for v, s in zip(self.voltage_cmd_mv, self.supply_mv, strict=True)
+            ]
+        else:
+            out = [0] * self.n
+        for j, lim in enumerate(self.limits):
+            if lim is None:
+                continue
+            if (self.counts[j] >= lim[1] and out[j] > 0) or (
+                self.counts[j] <= lim[0] and out[j] < 0
+            ):
+                out[j] = 0
+                status |= 1 << STATUS[f"limit_j{j}"]
+        self.applied_mv = [self._pwm(j, v) for j, v in enumerate(out)]
+        if self.watchdog_tripped:
+            status |= 1 << STATUS["watchdog_tripped"]
+        if self.estop:
+            status |= 1 << STATUS["estop"]
+        self.status = status
+        if self.streaming and self.tick % self.decimation == 0:
+            self._send(
+                M["TELEMETRY"](
+                    self.tick & 0xFFFFFFFF,
+                    status,
+                    self.mode,
+                    tuple(self.counts),
+                    tuple(_clamp16(mv_from_volts(v)) for v in sample.voltage),
+                    tuple(_clamp16(mv_from_volts(i)) for i in sample.current),
+                    tuple(self.setpoint),
+                )
+            )
+
+    def _pwm(self, j: int, mv: int) -> int:
+        """Quantise ``mv`` to the PWM duty; return the duty's voltage [mV] (integer math)."""
+        levels, supply = self.pwm_levels[j], self.supply_mv[j]
+        mag = (abs(mv) * levels + supply // 2) // supply
+        duty_mv = (mag * supply + levels // 2) // levels
+        return duty_mv if mv >= 0 else -duty_mv
+
+    def take_output(self) -> bytes:
+        """Bytes emitted since the previous call."""
+        out = bytes(self._out)
+        self._out.clear()
+        return out
+
+    def wants_time(self) -> bool:
+        """Time matters while streaming or moving (the watchdog runs)."""
+        return self.streaming or self.mode != MODE["idle"]
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+def _clamp16(value: int) -> int:
+    return max(-32768, min(32767, value))
+
+
+def make_sim_device(robot: str, options) -> FirmwareEmulator:
+    """Device factory for ``sim://``: the robot's YAML, a seeded plant, this emulator."""
+    from guardid.plant import make_plant
+    from guardid.robot import load_robot
+
+    description = load_robot(robot)
+    plant = make_plant(description, options)
+    return FirmwareEmulator(description, plant)

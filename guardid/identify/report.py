@@ -1,0 +1,131 @@
+"""Present an :class:`Identification`: the text table, params.yaml, and the optional plot."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import yaml
+
+from guardid.errors import ConfigError
+
+
+def table(result, methods) -> str:
+    """Base parameters per method: estimate, +- std where known, and the description's value."""
+    head = f"{'parameter':10s} {'YAML':>10s}"
+    for m in methods:
+        head += f" {m.upper():>21s}"
+    lines = [head]
+    for k, name in enumerate(result.names):
+        line = f"{name:10s} {result.nominal[k]:10.4g}"
+        for m in methods:
+            r = result.results[m]
+            if r.std is not None:
+                cell = f"{r.theta[k]:.4g} +- {r.std[k]:.2g}"
+            else:
+                cell = f"{r.theta[k]:.4g}"
+            line += f" {cell:>21s}"
+        lines.append(line)
+    unit = "N m" if result.torque_unit == "N m" else "A (current units)"
+    fit = ", ".join(f"{m.upper()} {100 * result.results[m].d_tau:.2f} %" for m in methods)
+    lines.append(
+        f"rows {result.rows}, cut-off {result.cutoff_hz:.3g} Hz, cond(A) {result.cond:.4g}, "
+        f"torque in {unit}; d_tau {fit}"
+    )
+    for motor in result.motors:
+        lines.append(
+            f"motor {motor.joint}: R {motor.resistance:.4g} +- {motor.resistance_std:.2g} ohm, "
+            f"Ke {motor.ke:.5g} +- {motor.ke_std:.2g} V s/rad"
+        )
+    return "\n".join(lines)
+
+
+def to_yaml_dict(result, description, log_path) -> dict:
+    """The params.yaml content: per method values (and std), names, formulas, settings."""
+    out = {
+        "guardid-params": 1,
+        "robot": description.name,
+        "log": str(log_path),
+        "torque_unit": result.torque_unit,
+        "cutoff_hz": result.cutoff_hz,
+        "cond": result.cond,
+        "rows": result.rows,
+        "base_parameters": [
+            {"name": n, "formula": f, "yaml_value": float(v)}
+            for n, f, v in zip(result.names, result.formulas, result.nominal, strict=True)
+        ],
+        "methods": {},
+    }
+    for m, r in result.results.items():
+        entry = {"values": [float(x) for x in r.theta], "d_tau": float(r.d_tau)}
+        if r.std is not None:
+            entry["std"] = [float(x) for x in r.std]
+        out["methods"][m] = entry
+    if result.motors:
+        out["motors"] = [
+            {
+                "joint": mo.joint,
+                "resistance_ohm": mo.resistance,
+                "resistance_std": mo.resistance_std,
+                "ke_v_s_per_rad": mo.ke,
+                "ke_std": mo.ke_std,
+            }
+            for mo in result.motors
+        ]
+    return out
+
+
+def read_params(path) -> dict:
+    """Load params.yaml written by ``guardid identify`` (one-line errors naming the key)."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            data = yaml.safe_load(f)
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read: {exc.strerror}") from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: invalid YAML: {str(exc).splitlines()[0]}") from None
+    if not isinstance(data, dict) or data.get("guardid-params") != 1:
+        raise ConfigError(f"{path}: guardid-params: not a params file written by guardid identify")
+    for key in ("robot", "base_parameters", "methods"):
+        if key not in data:
+            raise ConfigError(f"{path}: {key}: missing")
+    return data
+
+
+def plot(result, path, A=None, y=None) -> None:
+    """Torque fit and online estimators' convergence, as a PNG (needs matplotlib)."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise ConfigError(
+            "--plot: matplotlib is not installed (pip install 'guardid[plot]')"
+        ) from None
+    online = [m for m in ("rls", "hopfield", "gradient") if m in result.results]
+    n_rows = 1 + len(online)
+    fig, axes = plt.subplots(n_rows, 1, figsize=(9, 2.8 * n_rows), squeeze=False)
+    ax = axes[0, 0]
+    if A is not None and y is not None:
+        theta = result.results[next(iter(result.results))].theta
+        pred = np.einsum("nib,b->ni", A, theta)
+        for j in range(y.shape[1]):
+            ax.plot(y[:, j], lw=0.8, label=f"measured joint {j + 1}")
+            ax.plot(pred[:, j], lw=0.8, ls="--", label=f"model joint {j + 1}")
+        ax.set_ylabel(f"torque [{result.torque_unit}]")
+        ax.set_xlabel("identification row")
+        ax.legend(fontsize=7, ncol=2)
+    ax.set_title("torque fit")
+    for k, m in enumerate(online, start=1):
+        r = result.results[m]
+        ax = axes[k, 0]
+        if r.history is not None and r.history_t is not None:
+            scale = np.where(np.abs(result.nominal) > 0, np.abs(result.nominal), 1.0)
+            ax.plot(r.history_t, r.history / scale, lw=0.8)
+        ax.set_title(f"{m.upper()} estimates / YAML value (1 = the description's value)")
+        ax.set_xlabel("time [s]")
+        ax.set_ylim(-2, 3) if not math.isnan(r.d_tau) else None
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,152 @@
+"""Message classes built from ``messages.yaml`` at import time, frame encoder and decoder.
+
+Wire frame: ``cobs(version u8 | msg_id u8 | seq u16 | payload | crc32 u32) + b"\\x00"``,
+all little-endian; CRC-32 is ``zlib.crc32`` over header + payload.
+Decoded values are the raw integers of the wire (see each field's ``scale``/``unit``).
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from collections import namedtuple
+from typing import NamedTuple
+
+from cobs import cobs
+
+from .spec import CRC_LEN, HEADER_LEN, MessageSpec, load_spec
+
+SPEC = load_spec()
+PROTOCOL_VERSION = SPEC.version
+MAX_JOINTS = SPEC.max_joints
+MIN_RAW = HEADER_LEN + CRC_LEN  #: shortest decoded frame, bytes
+MAX_RAW = MIN_RAW + SPEC.max_payload  #: longest decoded frame, bytes
+MAX_ENCODED = MAX_RAW + MAX_RAW // 254 + 1  #: longest COBS-encoded frame (no delimiter)
+CRC_RESIDUE = 0x2144DF1C  #: zlib.crc32(raw) of any frame whose CRC is right
+
+
+class Frame(NamedTuple):
+    """A valid decoded frame: message id, sequence number (u16) and the message."""
+
+    msg_id: int
+    seq: int
+    msg: tuple
+
+
+def _class_name(name: str) -> str:
+    return "".join(p.capitalize() for p in name.split("_"))
+
+
+def _make_class(spec: MessageSpec) -> type:
+    base = namedtuple(_class_name(spec.name), [f.name for f in spec.fields])
+    doc = (
+        spec.doc
+        + " Fields (raw integers): "
+        + ", ".join(
+            f"{f.name} [{f.type}{'[n]' if f.per_joint else ''}"
+            + (f" x {f.scale:g} {f.unit}" if f.unit else "")
+            + "]"
+            for f in spec.fields
+        )
+    )
+    return type(
+        base.__name__,
+        (base,),
+        {"__slots__": (), "__doc__": doc, "MSG_ID": spec.msg_id, "SPEC": spec},
+    )
+
+
+#: message classes by name (``MESSAGES["TELEMETRY"]``) and by id.
+MESSAGES = {m.name: _make_class(m) for m in SPEC.messages}
+BY_ID = {cls.MSG_ID: cls for cls in MESSAGES.values()}
+
+_BODY: dict[tuple[int, int], struct.Struct] = {}
+#: (msg_id, raw length) -> (full struct, class, value indexers)
+DECODERS: dict[tuple[int, int], tuple[struct.Struct, type, list]] = {}
+for _m in SPEC.messages:
+    for _n in range(1, MAX_JOINTS + 1) if _m.per_joint else (0,):
+        _full = _m.struct_for(_n)
+        _BODY[(_m.msg_id, _n)] = struct.Struct(_full.format[:-1])
+        _k = len(_m.fixed)
+        _ix: list = list(range(3, 3 + _k))
+        _ix += [slice(3 + _k + j * _n, 3 + _k + (j + 1) * _n) for j in range(len(_m.per_joint))]
+        DECODERS[(_m.msg_id, _full.size)] = (_full, MESSAGES[_m.name], _ix)
+
+
+def n_joints_of(msg: tuple) -> int:
+    """Joint count of a message (length of its per-joint arrays; 0 if it has none)."""
+    spec = msg.SPEC
+    if not spec.per_joint:
+        return 0
+    lens = {len(getattr(msg, f.name)) for f in spec.per_joint}
+    if len(lens) != 1 or not 1 <= (n := lens.pop()) <= MAX_JOINTS:
+        raise ValueError(f"{spec.name}: per-joint arrays must share one length in 1..{MAX_JOINTS}")
+    return n
+
+
+def encode_raw(msg: tuple, seq: int, version: int = PROTOCOL_VERSION) -> bytes:
+    """Header + payload + CRC of ``msg`` (before COBS), ``seq`` taken modulo 2**16."""
+    spec = msg.SPEC
+    n = n_joints_of(msg)
+    vals: list[int] = []
+    for f, v in zip(spec.fields, msg, strict=True):
+        vals.extend(v) if f.per_joint else vals.append(v)
+    try:
+        body = _BODY[(spec.msg_id, n)].pack(version, spec.msg_id, seq & 0xFFFF, *vals)
+    except struct.error as exc:
+        raise ValueError(f"{spec.name}: {exc}") from None
+    return body + zlib.crc32(body).to_bytes(4, "little")
+
+
+def encode(msg: tuple, seq: int) -> bytes:
+    """Complete wire frame of ``msg``: COBS-encoded, terminated by the 0x00 delimiter."""
+    return cobs.encode(encode_raw(msg, seq)) + b"\x00"
+
+
+def decode_raw(raw: bytes) -> Frame | str:
+    """Decode one COBS-decoded frame; returns a :class:`Frame` or the error kind
+    (``"short"``, ``"crc"``, ``"version"``, ``"unknown_id"``, ``"length"``)."""
+    if len(raw) < MIN_RAW:
+        return "short"
+    if zlib.crc32(raw) != CRC_RESIDUE:
+        return "crc"
+    if raw[0] != PROTOCOL_VERSION:
+        return "version"
+    dec = DECODERS.get((raw[1], len(raw)))
+    if dec is None:
+        return "length" if raw[1] in BY_ID else "unknown_id"
+    vals = dec[0].unpack(raw)
+    return Frame(raw[1], vals[2], dec[1]._make([vals[i] for i in dec[2]]))
+
+
+def decode(frame: bytes) -> Frame | str:
+    """Decode one wire frame (with or without its trailing delimiter)."""
+    try:
+        raw = cobs.decode(frame[:-1] if frame.endswith(b"\x00") else frame)
+    except cobs.DecodeError:
+        return "cobs"
+    return decode_raw(raw)
+
+
+class Encoder:
+    """Stamps outgoing messages with this direction's sequence number (u16, wraps)."""
+
+    def __init__(self, first_seq: int = 0) -> None:
+        self.seq = first_seq & 0xFFFF
+
+    def encode(self, msg: tuple) -> bytes:
+        """Wire frame of ``msg`` with the next sequence number."""
+        out = encode(msg, self.seq)
+        self.seq = (self.seq + 1) & 0xFFFF
+        return out
+
+
+def to_si(msg: tuple) -> dict:
+    """Field values of ``msg`` in SI units (raw * scale; arrays become tuples of floats)."""
+    out = {}
+    for f, v in zip(msg.SPEC.fields, msg, strict=True):
+        if f.scale == 1.0:
+            out[f.name] = v
+        else:
+            out[f.name] = tuple(x * f.scale for x in v) if f.per_joint else v * f.scale
+    return out

@@ -1,0 +1,138 @@
+"""Incremental frame parser: arbitrary byte chunks in, valid frames out, errors counted.
+
+Segments are the bytes between 0x00 delimiters. Each non-empty segment is exactly one of:
+a valid frame, or one counted error (first failing check wins, in this order): longer
+than ``MAX_ENCODED`` (``overflows``), bad COBS (``cobs_errors``), shorter than header +
+CRC (``short_frames``), CRC mismatch (``crc_errors``), wrong protocol version
+(``bad_version``), unknown message id (``unknown_id``), payload length impossible for
+the id (``bad_length``). Empty segments (repeated delimiters) are idle fill, not errors.
+Nothing is ever raised out of :meth:`FrameParser.feed`.
+"""
+
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass, fields
+
+from cobs import cobs
+
+from .codec import BY_ID, CRC_RESIDUE, DECODERS, MAX_ENCODED, MIN_RAW, PROTOCOL_VERSION, Frame
+
+
+@dataclass
+class ParserStats:
+    """Counters of a :class:`FrameParser` (all plain ints)."""
+
+    bytes: int = 0  #: bytes fed
+    frames: int = 0  #: valid frames yielded
+    overflows: int = 0  #: segments longer than MAX_ENCODED, dropped unread
+    cobs_errors: int = 0
+    short_frames: int = 0
+    crc_errors: int = 0
+    bad_version: int = 0
+    unknown_id: int = 0
+    bad_length: int = 0
+    seq_gaps: int = 0  #: frames missing according to the sequence numbers
+    seq_backwards: int = 0  #: frames whose seq went back (duplicate, reorder or peer reset)
+
+    @property
+    def framing_errors(self) -> int:
+        """Segments rejected before or after the CRC for a reason other than the CRC."""
+        return (
+            self.overflows
+            + self.cobs_errors
+            + self.short_frames
+            + self.bad_version
+            + self.unknown_id
+            + self.bad_length
+        )
+
+    @property
+    def errors(self) -> int:
+        """All rejected segments (framing + CRC)."""
+        return self.framing_errors + self.crc_errors
+
+    def as_dict(self) -> dict[str, int]:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+class FrameParser:
+    """Feed byte chunks of one or both directions; sequence gaps are tracked per direction.
+
+    The buffer never holds more than ``MAX_ENCODED`` bytes: a longer segment is counted
+    once in ``stats.overflows`` and skipped up to the next delimiter.
+    """
+
+    def __init__(self) -> None:
+        self.stats = ParserStats()
+        self._buf = b""
+        self._discard = False
+        self._expect: list[int | None] = [None, None]  # host->mcu, mcu->host
+
+    def reset_sequence(self) -> None:
+        """Forget the expected sequence numbers (e.g. after the peer was reset)."""
+        self._expect = [None, None]
+
+    def feed(self, chunk: bytes) -> list[Frame]:
+        """Parse ``chunk``; return the frames it completed, in order."""
+        st = self.stats
+        st.bytes += len(chunk)
+        parts = (self._buf + chunk if self._buf else bytes(chunk)).split(b"\x00")
+        tail = parts.pop()
+        if self._discard:
+            if not parts:
+                return []
+            parts[0] = b""
+            self._discard = False
+        if len(tail) > MAX_ENCODED:
+            st.overflows += 1
+            self._discard = True
+            tail = b""
+        self._buf = tail
+        out: list[Frame] = []
+        decode = cobs.decode
+        crc32 = zlib.crc32
+        decoders = DECODERS
+        expect = self._expect
+        for seg in parts:
+            if not seg:
+                continue
+            if len(seg) > MAX_ENCODED:
+                st.overflows += 1
+                continue
+            try:
+                raw = decode(seg)
+            except cobs.DecodeError:
+                st.cobs_errors += 1
+                continue
+            if len(raw) < MIN_RAW:
+                st.short_frames += 1
+                continue
+            if crc32(raw) != CRC_RESIDUE:
+                st.crc_errors += 1
+                continue
+            if raw[0] != PROTOCOL_VERSION:
+                st.bad_version += 1
+                continue
+            mid = raw[1]
+            dec = decoders.get((mid, len(raw)))
+            if dec is None:
+                if mid in BY_ID:
+                    st.bad_length += 1
+                else:
+                    st.unknown_id += 1
+                continue
+            vals = dec[0].unpack(raw)
+            seq = vals[2]
+            d = mid >> 7
+            exp = expect[d]
+            if exp is not None and seq != exp:
+                gap = (seq - exp) & 0xFFFF
+                if gap < 0x8000:
+                    st.seq_gaps += gap
+                else:
+                    st.seq_backwards += 1
+            expect[d] = (seq + 1) & 0xFFFF
+            out.append(Frame(mid, seq, dec[1]._make([vals[i] for i in dec[2]])))
+        st.frames += len(out)
+        return out

@@ -1,0 +1,282 @@
+"""Load and validate a robot description YAML (schema: docs/ROBOT_YAML.md)."""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from guardid.errors import ConfigError
+from guardid.robot.description import (
+    DH,
+    PID,
+    STANDARD_NAMES,
+    ChainDescription,
+    Drive,
+    Encoder,
+    FlexibleLinkDescription,
+    Friction,
+    JointDescription,
+    Limits,
+    LinkDescription,
+    ParameterRange,
+    Sensor,
+)
+from guardid.robot.validate import Checker
+
+SHIPPED = ("guard", "planar2", "flexlink")
+DEFAULT_SAMPLE_PERIOD = 0.015  # s
+DEFAULT_GRAVITY = (0.0, 0.0, -9.81)  # m/s^2
+DEFAULT_VOLTAGE_SENSOR = Sensor(range=15.0, adc_bits=10, noise=0.01)  # V, bits, V
+"""Voltage sensor assumed for a joint with a drive when ``voltage_sensor`` is omitted."""
+
+
+def shipped_path(name: str) -> Path:
+    """Path of a shipped robot file, e.g. ``shipped_path('guard')``."""
+    return Path(str(resources.files("guardid") / "robots" / f"{name}.yaml"))
+
+
+def load_robot(spec: str | Path) -> ChainDescription | FlexibleLinkDescription:
+    """Load a robot by shipped name ('guard', 'planar2', 'flexlink') or by YAML file path.
+
+    Raises ConfigError (one line: ``<file>: <key path>: <problem>``) on any invalid content.
+    """
+    spec_str = str(spec)
+    if spec_str in SHIPPED:
+        path = shipped_path(spec_str)
+    else:
+        path = Path(spec_str)
+        if not path.is_file():
+            raise ConfigError(
+                f"{spec_str}: no such robot file (shipped robots: {', '.join(SHIPPED)})"
+            )
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        line = getattr(getattr(exc, "problem_mark", None), "line", None)
+        where = f"line {line + 1}" if line is not None else "<yaml>"
+        msg = f"{path.name}: {where}: invalid YAML ({exc.__class__.__name__})"
+        raise ConfigError(msg) from None
+    return parse_robot(data, path.name, source=str(path))
+
+
+def parse_robot(data, filename: str = "<robot>", source: str = ""):
+    """Validate an already-parsed YAML mapping; ``filename`` is used in error messages."""
+    ck = Checker(filename)
+    if not isinstance(data, dict):
+        ck.fail("", "expected a mapping at the top level")
+    model = ck.string(data.get("model", "serial_chain"), "model", ("serial_chain", "flexible_link"))
+    if model == "flexible_link":
+        return _parse_flexlink(ck, data, source)
+    return _parse_chain(ck, data, source)
+
+
+def _parse_chain(ck: Checker, data: dict, source: str) -> ChainDescription:
+    ck.mapping(data, "", ("name", "joints", "links"), ("model", "sample_period", "gravity"))
+    name = ck.string(data["name"], "name")
+    period = ck.number(
+        data.get("sample_period", DEFAULT_SAMPLE_PERIOD), "sample_period", positive=True
+    )
+    gravity = np.array(ck.vector(data.get("gravity", list(DEFAULT_GRAVITY)), "gravity", 3))
+    joints_raw = ck.sequence(data["joints"], "joints")
+    if not joints_raw:
+        ck.fail("joints", "at least one joint is required")
+    links_raw = ck.sequence(data["links"], "links", len(joints_raw))
+    joints = tuple(_joint(ck, j, f"joints[{i}]", i) for i, j in enumerate(joints_raw))
+    links = tuple(_link(ck, v, f"links[{i}]", i) for i, v in enumerate(links_raw))
+    return ChainDescription(
+        name=name, joints=joints, links=links, gravity=gravity, sample_period=period, source=source
+    )
+
+
+def _joint(ck: Checker, raw, path: str, index: int) -> JointDescription:
+    opt = ("name", "encoder", "current_sensor", "voltage_sensor", "pid")
+    ck.mapping(raw, path, ("type", "dh", "limits", "drive", "friction"), opt)
+    jtype = ck.string(raw["type"], f"{path}.type", ("revolute", "prismatic"))
+    name = ck.string(raw.get("name", f"joint{index + 1}"), f"{path}.name")
+    d = ck.mapping(raw["dh"], f"{path}.dh", ("a", "alpha", "d", "theta"))
+    dh = DH(*(ck.number(d[k], f"{path}.dh.{k}") for k in ("a", "alpha", "d", "theta")))
+    drive = _drive(ck, raw["drive"], f"{path}.drive")
+    friction = None
+    if raw["friction"] is not None:
+        fp = f"{path}.friction"
+        f = ck.mapping(raw["friction"], fp, ("viscous", "coulomb"), ("offset",))
+        friction = Friction(
+            ck.number(f["viscous"], f"{fp}.viscous", nonneg=True),
+            ck.number(f["coulomb"], f"{fp}.coulomb", nonneg=True),
+            ck.number(f.get("offset", 0.0), f"{fp}.offset"),
+        )
+    encoder = None
+    if raw.get("encoder") is not None:
+        ep = f"{path}.encoder"
+        e = ck.mapping(raw["encoder"], ep, ("counts_per_rev", "quadrature"))
+        encoder = Encoder(
+            ck.integer(e["counts_per_rev"], f"{ep}.counts_per_rev"),
+            ck.boolean(e["quadrature"], f"{ep}.quadrature"),
+        )
+    current = _sensor(ck, raw.get("current_sensor"), f"{path}.current_sensor")
+    default_v = DEFAULT_VOLTAGE_SENSOR if drive is not None else None
+    voltage = (
+        _sensor(ck, raw["voltage_sensor"], f"{path}.voltage_sensor")
+        if "voltage_sensor" in raw
+        else default_v
+    )
+    pid = None
+    if raw.get("pid") is not None:
+        pp = f"{path}.pid"
+        p = ck.mapping(raw["pid"], pp, ("kp", "ki", "kd"))
+        pid = PID(*(ck.number(p[k], f"{pp}.{k}", nonneg=True) for k in ("kp", "ki", "kd")))
+    return JointDescription(
+        name,
+        jtype,
+        dh,
+        _limits(ck, raw["limits"], f"{path}.limits"),
+        drive,
+        friction,
+        encoder,
+        current,
+        voltage,
+        pid,
+    )
+
+
+def _limits(ck: Checker, raw, path: str) -> Limits:
+    ck.mapping(raw, path, ("position", "velocity", "acceleration"))
+    position = None
+    if raw["position"] is not None:
+        lo, hi = ck.vector(raw["position"], f"{path}.position", 2)
+        if not lo < hi:
+            ck.fail(f"{path}.position", f"lower limit {lo:g} must be below upper limit {hi:g}")
+        position = (lo, hi)
+    return Limits(
+        position,
+        ck.number(raw["velocity"], f"{path}.velocity", positive=True),
+        ck.number(raw["acceleration"], f"{path}.acceleration", positive=True),
+    )
+
+
+_DRIVE_KEYS = (
+    "gear_ratio",
+    "efficiency",
+    "resistance",
+    "inductance",
+    "kt",
+    "ke",
+    "rotor_inertia",
+    "supply_voltage",
+    "pwm_bits",
+)
+
+
+def _drive(ck: Checker, raw, path: str) -> Drive | None:
+    if raw is None:
+        return None
+    ck.mapping(raw, path, _DRIVE_KEYS)
+    vals = {}
+    for key in _DRIVE_KEYS[:-1]:
+        kw = {"nonneg": True} if key in ("inductance", "rotor_inertia") else {"positive": True}
+        if key == "efficiency":
+            kw = {"lo": 0.0, "hi": 1.0}
+        vals[key] = ck.number(raw[key], f"{path}.{key}", **kw)
+    vals["pwm_bits"] = ck.integer(raw["pwm_bits"], f"{path}.pwm_bits")
+    return Drive(**vals)
+
+
+def _sensor(ck: Checker, raw, path: str) -> Sensor | None:
+    if raw is None:
+        return None
+    ck.mapping(raw, path, ("range", "adc_bits", "noise"))
+    return Sensor(
+        ck.number(raw["range"], f"{path}.range", positive=True),
+        ck.integer(raw["adc_bits"], f"{path}.adc_bits"),
+        ck.number(raw["noise"], f"{path}.noise", nonneg=True),
+    )
+
+
+def _link(ck: Checker, raw, path: str, index: int) -> LinkDescription:
+    ck.mapping(raw, path, ("mass", "com", "inertia"), ("name", "known_zero"))
+    name = ck.string(raw.get("name", f"link{index + 1}"), f"{path}.name")
+    mass = ck.number(raw["mass"], f"{path}.mass", positive=True)
+    com = np.array(ck.vector(raw["com"], f"{path}.com", 3))
+    inertia = _inertia(ck, raw["inertia"], f"{path}.inertia")
+    known = ck.sequence(raw.get("known_zero", []), f"{path}.known_zero")
+    known_zero = tuple(
+        ck.string(k, f"{path}.known_zero[{i}]", STANDARD_NAMES) for i, k in enumerate(known)
+    )
+    link = LinkDescription(name, mass, com, inertia, known_zero)
+    values = dict(zip(STANDARD_NAMES, link.standard_parameters(), strict=True))
+    scale = max(abs(v) for v in values.values())
+    for k in known_zero:
+        if abs(values[k]) > 1e-9 * scale:
+            ck.fail(f"{path}.known_zero", f"{k} is listed as zero but is {values[k]:.6g}")
+    return link
+
+
+def _inertia(ck: Checker, raw, path: str) -> np.ndarray:
+    if isinstance(raw, dict):
+        ck.mapping(raw, path, ("xx", "yy", "zz"), ("xy", "xz", "yz"))
+        g = {
+            k: ck.number(raw.get(k, 0.0), f"{path}.{k}")
+            for k in ("xx", "yy", "zz", "xy", "xz", "yz")
+        }
+        mat = np.array(
+            [[g["xx"], g["xy"], g["xz"]], [g["xy"], g["yy"], g["yz"]], [g["xz"], g["yz"], g["zz"]]]
+        )
+    elif isinstance(raw, list):
+        rows = ck.sequence(raw, path, 3)
+        mat = np.array([ck.vector(r, f"{path}[{i}]", 3) for i, r in enumerate(rows)])
+    else:
+        ck.fail(path, "expected {xx, yy, zz, xy, xz, yz} or a 3x3 list")
+    scale = max(np.abs(mat).max(), 1e-300)
+    if np.abs(mat - mat.T).max() > 1e-12 * scale:
+        ck.fail(path, "inertia tensor is not symmetric")
+    if np.linalg.eigvalsh(mat).min() < -1e-12 * scale:
+        ck.fail(path, "inertia tensor is not positive semi-definite")
+    d = np.diag(mat)
+    for i in range(3):
+        if d[i] > d[(i + 1) % 3] + d[(i + 2) % 3] + 1e-12 * scale:
+            ck.fail(path, "principal moments violate the triangle inequality")
+    # triangle inequality on principal moments (basis independent)
+    ev = np.linalg.eigvalsh(mat)
+    if ev[2] > ev[0] + ev[1] + 1e-12 * scale:
+        ck.fail(path, "principal moments violate the triangle inequality")
+    return mat
+
+
+def _parse_flexlink(ck: Checker, data: dict, source: str) -> FlexibleLinkDescription:
+    req = ("name", "model", "mass", "l1", "l2", "stiffness", "hub_inertia", "parameters")
+    ck.mapping(data, "", req, ("sample_period", "initial_state", "joint_names"))
+    vals = {
+        k: ck.number(data[k], k, positive=True)
+        for k in ("mass", "l1", "l2", "stiffness", "hub_inertia")
+    }
+    params = {}
+    praw = ck.mapping(data["parameters"], "parameters", ("alpha", "gamma", "k"))
+    for key in ("alpha", "gamma", "k"):
+        pp = f"parameters.{key}"
+        r = ck.mapping(praw[key], pp, ("nominal", "lo", "hi"))
+        nominal, lo, hi = (ck.number(r[k], f"{pp}.{k}") for k in ("nominal", "lo", "hi"))
+        if not lo < hi:
+            ck.fail(pp, f"lo {lo:g} must be below hi {hi:g}")
+        if not lo <= nominal <= hi:
+            ck.fail(f"{pp}.nominal", f"{nominal:g} is outside [{lo:g}, {hi:g}]")
+        params[key] = ParameterRange(nominal, lo, hi)
+    x0 = np.array(ck.vector(data.get("initial_state", [0.0, 0.0, 0.0, 0.0]), "initial_state", 4))
+    names = ck.sequence(data.get("joint_names", ["hub", "flex"]), "joint_names", 2)
+    names = tuple(ck.string(n, f"joint_names[{i}]") for i, n in enumerate(names))
+    period = ck.number(data.get("sample_period", 0.0005), "sample_period", positive=True)
+    return FlexibleLinkDescription(
+        name=ck.string(data["name"], "name"),
+        mass=vals["mass"],
+        l1=vals["l1"],
+        l2=vals["l2"],
+        stiffness=vals["stiffness"],
+        hub_inertia=vals["hub_inertia"],
+        parameters=params,
+        initial_state=x0,
+        sample_period=period,
+        joint_names=names,
+        source=source,
+    )
