@@ -11,14 +11,16 @@ import time
 
 import numpy as np
 import pytest
+from linktools import Recorder, Tee, expected_damage
 
 from guardid.capture import capture
 from guardid.errors import LinkError
 from guardid.fakeport import register_device_factory
-from guardid.firmware import FirmwareEmulator
+from guardid.firmware import FirmwareEmulator, make_sim_device
 from guardid.link import Session, open_port
 from guardid.log import read_log
 from guardid.plant import make_plant
+from guardid.protocol import decode
 from guardid.robot import load_robot
 
 GUARD = load_robot("guard")
@@ -108,25 +110,38 @@ def test_disconnect_mid_capture_keeps_rows_and_says_why(tmp_path):
 
 
 def test_link_faults_show_as_gaps_and_footer_counts(tmp_path):
-    port = open_port("sim://guard?seed=11&drop=3e-4&flip=3e-5")
-    session = Session(port, timeout_s=2.0)
-    session.handshake()
-    log = tmp_path / "run.csv"
-    result = capture(session, GUARD, Sines(), 20.0, log, {"robot": "guard"})
-    damage = port.fault_stats.down
-    port.close()
+    tees = []
+
+    def factory(robot, options):
+        tees.append(Tee(make_sim_device(robot, options)))
+        return tees[-1]
+
+    old = register_device_factory(factory)
+    try:
+        port = Recorder(open_port("sim://guard?seed=11&drop=3e-4&flip=3e-5&latency_ms=16"))
+        session = Session(port, timeout_s=2.0)
+        session.handshake()
+        log = tmp_path / "run.csv"
+        result = capture(session, GUARD, Sines(), 20.0, log, {"robot": "guard"})
+        port.close()
+    finally:
+        register_device_factory(old)
+    errors, lost = expected_damage(bytes(tees[0].sent), bytes(port.received))
     data = read_log(log)
-    ticks = data.columns["tick"].astype(int)
-    assert len(ticks) == result.rows < result.ticks_expected == 1333
-    assert np.all(np.diff(ticks) >= 1)  # gaps, never duplicates or invented rows
     link = data.footer["link"]
-    assert link["crc_errors"] + link["framing_errors"] > 0
-    assert (
-        damage.bytes_dropped + damage.bytes_flipped >= link["crc_errors"] + link["framing_errors"]
-    )
-    # every lost row is a telemetry frame the parser saw missing in the sequence numbers
-    assert link["seq_gaps"] >= result.ticks_expected - result.rows > 0
-    assert data.footer["ticks_expected"] - data.footer["rows"] == result.lost_rows
+    # the footer's counts equal the damage counted independently from the two byte streams
+    assert errors > 0 and link["crc_errors"] + link["framing_errors"] == errors
+    assert link["seq_gaps"] == len(lost)
+    # lost telemetry rows are gaps in the tick column, never invented rows
+    ticks = data.columns["tick"].astype(int)
+    first = ticks[0] - int(round(data.columns["time_s"][0] / 0.015))  # tick of trajectory row 0
+    lost_ticks = {
+        f.msg.tick - first
+        for f in map(decode, lost)
+        if type(f.msg).__name__ == "Telemetry" and 0 <= f.msg.tick - first < result.ticks_expected
+    }
+    assert lost_ticks and set(ticks - first) == set(range(result.ticks_expected)) - lost_ticks
+    assert data.footer["ticks_expected"] - data.footer["rows"] == len(lost_ticks)
 
 
 def _cli_capture(tmp_path, duration: float):

@@ -11,6 +11,7 @@ import sys
 import numpy as np
 import pytest
 import serial
+from linktools import Recorder, Tee, expected_damage
 
 from guardid.fakeport import register_device_factory
 from guardid.firmware import make_sim_device
@@ -37,22 +38,6 @@ def reference_trajectory(n: int = N_TICKS) -> np.ndarray:
 
 def setpoints(n: int = N_TICKS) -> np.ndarray:
     return np.rint(reference_trajectory(n) * PER_RAD).astype(np.int64)
-
-
-class Recorder:
-    """A port proxy that keeps every byte the host read."""
-
-    def __init__(self, port) -> None:
-        self._port = port
-        self.received = bytearray()
-
-    def read(self, size: int = 1) -> bytes:
-        data = self._port.read(size)
-        self.received += data
-        return data
-
-    def __getattr__(self, name):
-        return getattr(self._port, name)
 
 
 def run(port, n: int = N_TICKS):
@@ -147,7 +132,7 @@ def test_same_seed_gives_byte_identical_telemetry(lockstep_run):
 
 def test_pty_gives_the_same_telemetry_as_sim(lockstep_run):
     rows_sim, _, _ = lockstep_run
-    n = 600  # 9 s: the pty run is paced by real reads and writes
+    n = N_TICKS  # the whole 60 s run, paced by real reads and writes on the pty
     env = dict(os.environ)
     env.pop("GUARDID_FAKEPORT_DEVICE", None)
     proc = subprocess.Popen(
@@ -180,23 +165,6 @@ def test_pty_gives_the_same_telemetry_as_sim(lockstep_run):
         ), f"tick {k} differs"
 
 
-class Tee:
-    """Wraps the emulator to keep the clean bytes it sent (before the link's faults)."""
-
-    def __init__(self, device) -> None:
-        self.device = device
-        self.sent = bytearray()
-        self.tick_period_s = device.tick_period_s
-
-    def take_output(self) -> bytes:
-        out = self.device.take_output()
-        self.sent += out
-        return out
-
-    def __getattr__(self, name):
-        return getattr(self.device, name)
-
-
 def test_injected_link_damage_equals_host_counters():
     tees = []
 
@@ -217,12 +185,7 @@ def test_injected_link_damage_equals_host_counters():
     clean = bytes(tees[0].sent)
     delivered = bytes(port.received)
     assert damage.bytes_dropped + damage.bytes_flipped > 5, "the seed injected too little"
-    # independent truth: every delivered segment that is not a clean frame is one error
-    clean_frames = [s for s in clean.split(b"\x00") if s]
-    clean_set = set(clean_frames)
-    got = [s for s in delivered.split(b"\x00") if s]
-    expected_errors = sum(1 for s in got if s not in clean_set)
-    lost = [s for s in clean_frames if s not in set(got)]
+    expected_errors, lost = expected_damage(clean, delivered)
     assert session.stats.errors == expected_errors
     assert session.stats.seq_gaps == len(lost)
     # lost telemetry shows as missing ticks, never as invented rows

@@ -22,6 +22,44 @@ def _robot_for(run, robot_opt):
     return load_robot(spec)
 
 
+def _foreign_options(f):
+    """--columns, --sample-period, --mat-var, --mat-columns (foreign logs; both commands)."""
+    opts = [
+        click.option(
+            "--columns",
+            multiple=True,
+            help="Foreign log: KEY=COLUMN[*FACTOR],... with keys time, q<j> [rad|m], "
+            "tau<j> [N m|N] or i<j> [A], v<j> [V]; or a mapping YAML file "
+            "(docs/FOREIGN_LOGS.md). Repeatable; later entries win.",
+        ),
+        click.option(
+            "--sample-period", type=float, default=None, help="Foreign log without time [s]."
+        ),
+        click.option("--mat-var", default=None, help=".mat: 2-D array variable (N, k)."),
+        click.option("--mat-columns", default=None, help=".mat: names of --mat-var's columns."),
+    ]
+    for opt in reversed(opts):
+        f = opt(f)
+    return f
+
+
+def _load(log, robot_opt, columns, sample_period, mat_var, mat_columns):
+    """(run, description): a guardid log, or a foreign one when a mapping option is given."""
+    from guardid.identify.runs import load_run
+    from guardid.robot import load_robot
+
+    if not (columns or sample_period is not None or mat_var or mat_columns):
+        run = load_run(log)
+        return run, _robot_for(run, robot_opt)
+    from guardid.identify.foreign import parse_mapping
+
+    mapping = parse_mapping(columns, sample_period, mat_var, mat_columns)
+    if not robot_opt:
+        raise ConfigError(f"{log}: a foreign log names no robot: give --robot")
+    description = load_robot(robot_opt)
+    return load_run(log, mapping=mapping, description=description), description
+
+
 @click.command()
 @click.argument("log", type=click.Path(dir_okay=False))
 @click.option("--robot", default=None, help="Shipped robot or YAML path [default: the log's].")
@@ -38,20 +76,24 @@ def _robot_for(run, robot_opt):
 @click.option("--current-units", is_flag=True, help="Identify in current units (gain unknown).")
 @click.option("-o", "--output", default=None, help="Write the parameters to this YAML file.")
 @click.option("--plot", "plot_path", default=None, help="Write a PNG report (matplotlib).")
-def identify(log, robot, method, cutoff, beta, lam, eta, current_units, output, plot_path):
-    """Identify the robot's base parameters and motor constants from LOG."""
+@_foreign_options
+def identify(
+    log, robot, method, cutoff, beta, lam, eta, current_units, output, plot_path, **foreign
+):
+    """Identify the robot's base parameters and motor constants from LOG.
+
+    LOG is a guardid log, or a foreign CSV / MATLAB .mat log read through --columns.
+    """
     from guardid.identify import identification_rows
     from guardid.identify import identify as run_identify
     from guardid.identify.report import plot, table, to_yaml_dict
-    from guardid.identify.runs import load_run
 
-    run = load_run(log)
-    description = _robot_for(run, robot)
+    run, description = _load(log, robot, **foreign)
     methods = tuple(m.strip() for m in method.split(",") if m.strip())
     result = run_identify(
         run.t, run.q, run.current, description, methods=methods, cutoff_hz=cutoff, beta=beta,
         lam=lam, gradient_eta=eta, voltage_v=run.voltage, ticks=run.ticks,
-        in_current_units=current_units,
+        in_current_units=current_units, effort_is_torque=run.torque,
     )  # fmt: skip
     click.echo(table(result, methods))
     for w in result.warnings:
@@ -62,7 +104,7 @@ def identify(log, robot, method, cutoff, beta, lam, eta, current_units, output, 
         click.echo(f"parameters written to {output}")
     if plot_path:
         _, A, y = identification_rows(
-            run.t, run.q, run.current, description, result.cutoff_hz, current_units
+            run.t, run.q, run.current, description, result.cutoff_hz, current_units, run.torque
         )
         plot(result, plot_path, A, y)
         click.echo(f"plot written to {plot_path}")
@@ -73,16 +115,15 @@ def identify(log, robot, method, cutoff, beta, lam, eta, current_units, output, 
 @click.option("--params", "params_path", required=True, help="params.yaml from guardid identify.")
 @click.option("--robot", default=None, help="Shipped robot or YAML path [default: the params'].")
 @click.option("--cutoff", type=float, default=None, help="Low-pass cut-off [Hz].")
-def validate(log, params_path, robot, cutoff):
+@_foreign_options
+def validate(log, params_path, robot, cutoff, **foreign):
     """Torque prediction error (d_tau) of identified parameters on another run."""
     from guardid.estimators import d_tau
     from guardid.identify import identification_rows
     from guardid.identify.report import read_params
-    from guardid.identify.runs import load_run
 
     params = read_params(params_path)
-    run = load_run(log)
-    description = _robot_for(run, robot or params["robot"])
+    run, description = _load(log, robot or params["robot"], **foreign)
     names = [p["name"] for p in params["base_parameters"]]
     from guardid.dynamics import build_model
 
@@ -94,8 +135,9 @@ def validate(log, params_path, robot, cutoff):
         )
     current_units = params.get("torque_unit") != "N m"
     cond, A, y = identification_rows(
-        run.t, run.q, run.current, description, cutoff or params.get("cutoff_hz"), current_units
-    )
+        run.t, run.q, run.current, description, cutoff or params.get("cutoff_hz"), current_units,
+        run.torque,
+    )  # fmt: skip
     joints = [j.name for j in description.joints]
     for m, entry in params["methods"].items():
         theta = np.asarray(entry["values"], dtype=float)

@@ -21,6 +21,8 @@ import numpy as np
 from ._base import Estimator, as_blocks, as_sample, checkpoints
 
 _CHUNK_ROWS = 16384  # stacked rows per offline chunk (memory bound)
+_F64 = np.dtype(np.float64)
+_SHAPE2 = (2,)
 
 
 class RLS(Estimator):
@@ -32,6 +34,9 @@ class RLS(Estimator):
     Attributes: ``theta_`` (p,), ``P_`` (p, p) covariance-like matrix, ``n_samples_``,
     ``history_`` (n_hist, p), ``history_samples_`` (n_hist,).
     """
+
+    _ws = None  # fast-path work arrays (see ``_make_workspace``)
+    _ws_theta = None
 
     def __init__(self, lam: float = 1.0, p0=1e6, theta0=None, history_every: int = 10):
         if not 0.0 < lam <= 1.0:
@@ -49,10 +54,70 @@ class RLS(Estimator):
 
     # -- online --------------------------------------------------------------------------
     def update(self, A_k, y_k):
-        """One sample: A_k (n_out, p) or (p,), y_k (n_out,) or scalar."""
-        A_k, y_k = as_sample(A_k, y_k)
-        if not hasattr(self, "P_"):
-            self._init_state(A_k.shape[1])
+        """One sample: A_k (n_out, p) or (p,), y_k (n_out,) or scalar (units of ``fit``).
+
+        With n_out = 2 and float64 ndarray inputs of the state's shape this takes a fast path
+        (cheap type/shape checks, preallocated work arrays, in-place products, a closed-form
+        2 x 2 inverse in Python floats); ``P_`` is then updated in place and ``theta_`` is a
+        new array after every sample. Replacing ``P_`` or ``theta_`` by new arrays is picked
+        up at the next call; treat them as read-only otherwise.
+        """
+        ws = self._ws
+        if (
+            ws is None
+            or type(A_k) is not np.ndarray
+            or type(y_k) is not np.ndarray
+            or A_k.shape != ws[0]
+            or y_k.shape != _SHAPE2
+            or A_k.dtype is not _F64
+            or y_k.dtype is not _F64
+            or self.P_ is not ws[1]
+            or self.theta_ is not self._ws_theta
+        ):
+            A_k, y_k = as_sample(A_k, y_k)
+            if not hasattr(self, "P_"):
+                self._init_state(A_k.shape[1])
+            if A_k.shape[0] != 2 or A_k.shape[1] != self.theta_.shape[0]:
+                return self._update_general(A_k, y_k)
+            if (
+                ws is None
+                or A_k.shape != ws[0]
+                or self.P_ is not ws[1]
+                or self.theta_ is not self._ws_theta
+            ):
+                ws = self._make_workspace(A_k.shape)
+        _, P, U, UT, XtT, Z, Cf, C, G, G2, Xth, Gth, T = ws
+        A_k.dot(P, out=U)  # U = A P = (P A^T)^T, (2, p)
+        A_k.dot(XtT, out=Z)  # [A P A^T | A theta], (2, 3)
+        (a, b, at0), (c, d, at1) = Z.tolist()
+        y0, y1 = y_k.tolist()
+        lam = self.lam
+        a += lam
+        d += lam
+        r = 1.0 / (a * d - b * c)
+        e0 = y0 - at0
+        e1 = y1 - at1
+        Cf[0] = d * r  # rows 0-1: S^-1, S = lambda I + A P A^T; row 2: (S^-1 e)^T
+        Cf[1] = -b * r
+        Cf[2] = -c * r
+        Cf[3] = a * r
+        Cf[4] = (d * e0 - b * e1) * r
+        Cf[5] = (a * e1 - c * e0) * r
+        C.dot(U, out=G)  # [S^-1 U ; (S^-1 e)^T U] = [K^T ; (K e)^T]
+        UT.dot(G2, out=T)  # K phi^T P = U^T S^-1 U, (p, p)
+        np.subtract(P, T, out=P)
+        if lam != 1.0:
+            np.divide(P, lam, out=P)
+        np.add(Xth, Gth, out=Xth)  # theta += K e
+        self.theta_ = self._ws_theta = Xth.copy()
+        self.n_samples_ += 1
+        if self.n_samples_ % 64 == 0:  # remove the slow asymmetric round-off drift
+            np.add(P, P.T, out=T)
+            np.multiply(T, 0.5, out=P)
+        return self
+
+    def _update_general(self, A_k, y_k):
+        """Reference per-sample step for any n_out (validated (n_out, p) / (n_out,) input)."""
         P, lam = self.P_, self.lam
         PA = P @ A_k.T  # (p, n)
         S = A_k @ PA  # (n, n)
@@ -77,6 +142,22 @@ class RLS(Estimator):
             P = 0.5 * (P + P.T)
         self.P_ = P
         return self
+
+    def _make_workspace(self, shape_A):
+        """Work arrays of the n_out = 2 fast path; takes over copies of ``P_`` and ``theta_``."""
+        p = shape_A[1]
+        P = np.array(self.P_, dtype=float, order="C")
+        Xt = np.empty((3, p))  # rows 0-1: U = A P; row 2: theta
+        Xt[2] = self.theta_
+        Cf = np.empty(6)  # the (3, 2) coefficient matrix, flat
+        G = np.empty((3, p))
+        self.P_ = P
+        self.theta_ = self._ws_theta = Xt[2].copy()
+        U = Xt[:2]
+        Z = np.empty((2, 3))
+        self._ws = (shape_A, P, U, U.T, Xt.T, Z, Cf, Cf.reshape(3, 2), G, G[:2], Xt[2], G[2])
+        self._ws += (np.empty((p, p)),)
+        return self._ws
 
     # -- offline -------------------------------------------------------------------------
     def fit(self, A, y):

@@ -63,15 +63,27 @@ class Identification:
 
 
 def identification_rows(
-    t_s, q_rad, current_a, description, cutoff_hz=None, in_current_units=False, **kwargs
+    t_s,
+    q_rad,
+    current_a,
+    description,
+    cutoff_hz=None,
+    in_current_units=False,
+    effort_is_torque: bool = False,
+    **kwargs,
 ):
     """Conditioned signals and the stacked base regressor of the usable rows.
 
     Returns (conditioned, A (M, n, b), y (M, n)) where y is the joint torque [N m] minus the
     model's known torque (or the current [A] when ``in_current_units``).
+    ``effort_is_torque``: ``current_a`` is measured joint torque [N m] sampled at the time
+    stamps (foreign logs): gain 1, no period-mean alignment.
     """
     model = build_model(description)
     gain = None if in_current_units else _drive_gain(description)
+    if effort_is_torque:
+        gain = 1.0
+        kwargs.setdefault("align_period_mean", False)
     cond = condition(t_s, q_rad, current_a, cutoff_hz=cutoff_hz, gain=gain, **kwargs)
     m = cond.mask
     if m.sum() <= len(model.base.names):
@@ -108,19 +120,21 @@ def identify(
     voltage_v=None,
     ticks=None,
     in_current_units: bool = False,
+    effort_is_torque: bool = False,
 ) -> Identification:
     """Identify the base parameters of ``description`` from one run.
 
     t_s (N,) [s]; q_rad (N, n); current_a (N, n) motor current [A] (period means, guard
     firmware) or joint torque with drive-less joints; voltage_v and ticks (optional) add the
-    motors' R and Ke. ``methods`` is any subset of :data:`METHODS`.
+    motors' R and Ke. ``methods`` is any subset of :data:`METHODS`. ``effort_is_torque``:
+    current_a is measured joint torque [N m] (see :func:`identification_rows`).
     """
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
         raise GuardidError(f"--method: unknown {', '.join(unknown)} (known: {', '.join(METHODS)})")
     model = build_model(description)
     cond, A, y = identification_rows(
-        t_s, q_rad, current_a, description, cutoff_hz, in_current_units
+        t_s, q_rad, current_a, description, cutoff_hz, in_current_units, effort_is_torque
     )
     nominal = model.base.values(model.params)
     dt = float(np.median(np.diff(cond.t)))
@@ -146,7 +160,7 @@ def identify(
         if r > POOR_REL_STD_PCT
     ]
     motors = []
-    if voltage_v is not None and ticks is not None and not in_current_units:
+    if voltage_v is not None and ticks is not None and not (in_current_units or effort_is_torque):
         motors = _motors(description, ticks, q_rad, voltage_v, current_a)
     return Identification(
         names=tuple(model.base.names),

@@ -1,4 +1,5 @@
-"""Read a run for identification: a guardid log, turned into arrays in SI units."""
+"""Read a run for identification: a guardid log or, through a column mapping, a foreign
+CSV/.mat log (:mod:`guardid.identify.foreign`), turned into arrays in SI units."""
 
 from __future__ import annotations
 
@@ -12,7 +13,12 @@ from guardid.log import read_log
 
 @dataclass
 class Run:
-    """One run: ticks (N,), t [s] (N,), q [rad], current [A], voltage [V] (N, n) or None."""
+    """One run: ticks (N,) or None, t [s] (N,), q [rad], current, voltage [V] (N, n) or None.
+
+    ``current`` is the effort: motor current [A] (period means, as in guardid logs), or joint
+    torque [N m] when ``torque`` is True (foreign logs with tau<j> columns: instantaneous
+    samples, used as they are).
+    """
 
     path: str
     robot: str | None
@@ -21,14 +27,26 @@ class Run:
     q: np.ndarray
     current: np.ndarray
     voltage: np.ndarray | None
+    torque: bool = False
 
 
-def load_run(path, sample_period_s: float | None = None) -> Run:
-    """Load a guardid capture log. Time comes from the tick column and the sample period."""
+def load_run(path, sample_period_s: float | None = None, mapping=None, description=None) -> Run:
+    """Load a run. Without ``mapping``: a guardid capture log, time from the tick column and
+    the sample period [s]. With a :class:`~guardid.identify.foreign.ColumnMapping`: a foreign
+    CSV or .mat log for ``description`` (the robot; its joint count is checked)."""
+    if mapping is not None:
+        if description is None:
+            raise LogFormatError(f"{path}: a foreign log needs the robot (--robot)")
+        return _load_foreign(path, mapping, description)
+    if str(path).lower().endswith(".mat"):
+        raise LogFormatError(f"{path}: a .mat file needs a column mapping (--columns)")
     data = read_log(path)
     for col in ("tick",):
         if col not in data.columns:
-            raise LogFormatError(f"{path}: column {col!r} missing")
+            raise LogFormatError(
+                f"{path}: column {col!r} missing (not a guardid log? map a foreign log's "
+                "columns with --columns)"
+            )
     ticks = data.columns["tick"].astype(np.int64)
     if len(ticks) < 10:
         raise LogFormatError(f"{path}: only {len(ticks)} rows")
@@ -46,4 +64,28 @@ def load_run(path, sample_period_s: float | None = None) -> Run:
         q=q,
         current=current,
         voltage=voltage if voltage.shape == q.shape else None,
+    )
+
+
+def _load_foreign(path, mapping, description) -> Run:
+    from guardid.identify.foreign import read_foreign
+
+    joints = getattr(description, "joints", None)
+    n = len(joints) if joints is not None else len(description.joint_names)
+    data = read_foreign(path, mapping, n, description.name)
+    # ticks of the robot's sample period when the time stamps sit on that grid (1 % of a
+    # period): then the motors' R and Ke can be estimated as for a guardid log
+    period = float(description.sample_period)
+    ticks = np.rint(data.t / period).astype(np.int64)
+    on_grid = bool(np.all(np.abs(data.t - ticks * period) <= 0.01 * period))
+    on_grid = on_grid and bool(np.all(np.diff(ticks) > 0))
+    return Run(
+        path=str(path),
+        robot=getattr(description, "source", "") or description.name,
+        ticks=ticks if on_grid else None,
+        t=data.t,
+        q=data.q,
+        current=data.effort,
+        voltage=data.voltage,
+        torque=data.torque,
     )

@@ -26,7 +26,7 @@ from guardid.robot.description import (
 )
 from guardid.robot.validate import Checker
 
-SHIPPED = ("guard", "planar2", "flexlink")
+SHIPPED = ("guard", "planar2", "flexlink", "dfki_double_pendulum")
 DEFAULT_SAMPLE_PERIOD = 0.015  # s
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)  # m/s^2
 DEFAULT_VOLTAGE_SENSOR = Sensor(range=15.0, adc_bits=10, noise=0.01)  # V, bits, V
@@ -39,7 +39,7 @@ def shipped_path(name: str) -> Path:
 
 
 def load_robot(spec: str | Path) -> ChainDescription | FlexibleLinkDescription:
-    """Load a robot by shipped name ('guard', 'planar2', 'flexlink') or by YAML file path.
+    """Load a robot by shipped name (:data:`SHIPPED`) or by YAML file path.
 
     Raises ConfigError (one line: ``<file>: <key path>: <problem>``) on any invalid content.
     """

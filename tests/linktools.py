@@ -1,0 +1,51 @@
+"""Test helpers: see the bytes on both sides of a faulty sim:// link."""
+
+from __future__ import annotations
+
+
+class Recorder:
+    """A port proxy that keeps every byte the host read."""
+
+    def __init__(self, port) -> None:
+        self._port = port
+        self.received = bytearray()
+
+    def read(self, size: int = 1) -> bytes:
+        data = self._port.read(size)
+        self.received += data
+        return data
+
+    def __getattr__(self, name):
+        return getattr(self._port, name)
+
+
+class Tee:
+    """Wraps a device to keep the clean bytes it sent (before the link's faults)."""
+
+    def __init__(self, device) -> None:
+        self.device = device
+        self.sent = bytearray()
+        self.tick_period_s = device.tick_period_s
+
+    def take_output(self) -> bytes:
+        out = self.device.take_output()
+        self.sent += out
+        return out
+
+    def __getattr__(self, name):
+        return getattr(self.device, name)
+
+
+def expected_damage(clean: bytes, delivered: bytes) -> tuple[int, list[bytes]]:
+    """Independent count of the damage: (segments that are not clean frames, lost frames).
+
+    Frames are 0x00-delimited and carry a CRC-32, so every delivered segment that is not
+    byte-identical to a frame that was sent is exactly one rejected segment, and every
+    sent frame missing from the delivered ones is lost.
+    """
+    clean_frames = [s for s in clean.split(b"\x00") if s]
+    got = [s for s in delivered.split(b"\x00") if s]
+    clean_set, got_set = set(clean_frames), set(got)
+    errors = sum(1 for s in got if s not in clean_set)
+    lost = [s for s in clean_frames if s not in got_set]
+    return errors, lost
