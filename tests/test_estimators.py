@@ -1,5 +1,8 @@
 """Estimators against independent truths: synthetic linear models with known theta."""
 
+import copy
+import pickle
+
 import numpy as np
 import pytest
 
@@ -12,6 +15,7 @@ from guardid.estimators import (
     d_tau,
     d_theta,
 )
+from guardid.estimators.hopfield import _sample_step
 
 
 def model(N=2000, p=6, n=2, noise=(0.05, 0.05), seed=0, cond=None):
@@ -149,6 +153,81 @@ def test_rls_close_to_ls():
     assert np.max(np.abs(r.theta_ - ls.theta_) / np.abs(ls.theta_)) < 1e-3
 
 
+def rls_general(m, A, y):
+    """Run RLS ``m`` over the samples through the reference per-sample step only."""
+    for k in range(A.shape[0]):
+        if not hasattr(m, "P_"):
+            m._init_state(A.shape[2])
+        m._update_general(A[k], y[k])
+    return m
+
+
+def assert_rls_state_close(a, b, rtol=1e-12):
+    np.testing.assert_allclose(a.theta_, b.theta_, rtol=rtol, atol=rtol * np.abs(b.theta_).max())
+    np.testing.assert_allclose(a.P_, b.P_, rtol=rtol, atol=rtol * np.abs(b.P_).max())
+    assert a.n_samples_ == b.n_samples_
+
+
+@pytest.mark.parametrize("lam", [1.0, 0.97])
+@pytest.mark.parametrize("p", [6, 13])
+def test_rls_fast_update_equals_general_step(lam, p):
+    """The n_out = 2 fast path against the reference step over 700 random samples (crossing
+    the symmetrisation every 64 samples), with list inputs mixed in (converted, then fast)."""
+    A, th, y = model(N=700, p=p, seed=p)
+    fast = RLS(lam=lam, p0=50.0)
+    for k in range(700):
+        if k % 97 == 5:
+            fast.update(A[k].tolist(), y[k].tolist())
+        else:
+            fast.update(A[k], y[k])
+        assert fast.P_ is fast._ws[1]  # every sample took the fast computations
+    ref = rls_general(RLS(lam=lam, p0=50.0), A, y)
+    assert_rls_state_close(fast, ref)
+    np.testing.assert_allclose(fast.theta_, th, atol=0.05)
+
+
+def test_rls_fast_update_continues_fit_and_picks_up_replaced_state():
+    A, th, y = model(N=600, p=8)
+    fast = RLS(lam=0.99, p0=10.0).fit(A[:200], y[:200])
+    ref = RLS(lam=0.99, p0=10.0).fit(A[:200], y[:200])
+    for k in range(200, 400):
+        fast.update(A[k], y[k])
+    rls_general(ref, A[200:400], y[200:400])
+    assert_rls_state_close(fast, ref)
+    # theta_ and P_ are new arrays after each fast update; replacing them is picked up
+    old = fast.theta_
+    fast.update(A[400], y[400])
+    assert fast.theta_ is not old
+    rls_general(ref, A[400:401], y[400:401])
+    for m in (fast, ref):
+        m.theta_ = m.theta_ + 0.1
+        m.P_ = 2.0 * m.P_
+    for k in range(401, 600):
+        fast.update(A[k], y[k])
+    rls_general(ref, A[401:], y[401:])
+    assert_rls_state_close(fast, ref)
+    # a refit restarts from the initial state
+    fast.fit(A[:50], y[:50])
+    for k in range(50, 100):
+        fast.update(A[k], y[k])
+    assert_rls_state_close(fast, rls_general(RLS(lam=0.99, p0=10.0), A[:100], y[:100]), 1e-9)
+
+
+def test_rls_copy_and_pickle_mid_stream_continue_identically():
+    A, th, y = model(N=300, p=7)
+    m = RLS(lam=0.995, p0=10.0)
+    for k in range(100):
+        m.update(A[k], y[k])
+    clones = [copy.deepcopy(m), pickle.loads(pickle.dumps(m))]
+    for k in range(100, 300):
+        m.update(A[k], y[k])
+    for c in clones:
+        for k in range(100, 300):
+            c.update(A[k], y[k])
+        np.testing.assert_array_equal(c.theta_, m.theta_)
+        np.testing.assert_array_equal(c.P_, m.P_)
+
+
 # ---------------------------------------------------------------- Hopfield
 def box(p, half=2.0):
     return -half * np.ones(p), half * np.ones(p)
@@ -220,6 +299,71 @@ def test_hopfield_half_widths_and_bad_args():
         Hopfield(bounds=box(3), beta=0.0)
 
 
+def hop_general(h, A, y):
+    """s after running Hopfield ``h``'s step over the samples with the reference kernel."""
+    s = h.s_.copy()
+    for k in range(A.shape[0]):
+        s = _sample_step(s, A[k] * h.scale_, y[k] - A[k] @ h.center_, h.beta / h.dt)
+    return s
+
+
+@pytest.mark.parametrize(("beta", "dt"), [(0.05, 0.015), (1e-4, 1.0), (1.0, 1e-3)])
+def test_hopfield_fast_update_equals_general_step(beta, dt):
+    """Fast path against the reference per-sample step, including fraction-to-boundary cuts
+    (small beta: large steps) and a parameter pinned at its bound (truth outside the box)."""
+    A, th, y = model(N=1500, p=12, noise=0.01, seed=4, cond=10)
+    lo, hi = th - 0.4, th + 0.4
+    hi[3] = th[3] - 0.1  # truth outside the box: s_3 pinned near +1
+    h = Hopfield(bounds=(lo, hi), beta=beta, dt=dt)
+    s_ref = hop_general(h, A, y)
+    for k in range(1500):
+        h.update(A[k], y[k])
+        assert h.s_ is h._ws_s  # every sample took the fast computations
+    np.testing.assert_allclose(h.s_, s_ref, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(h.theta_, h.center_ + h.scale_ * s_ref, rtol=1e-12, atol=1e-12)
+    assert np.all(np.abs(h.s_) < 1)
+    if dt / beta >= 0.1:
+        assert h.s_[3] > 0.99
+    assert h.n_samples_ == 1500
+
+
+def test_hopfield_fast_update_clips_at_the_last_double_below_one():
+    """From s_0 = largest double below 1, a small push upward rounds s_0 to 1.0; the fast path
+    must clip it back exactly like the reference step."""
+    A, th, y = model(N=50, p=4, noise=0.0, seed=5)
+    h = Hopfield(bounds=box(4), beta=0.05, dt=0.015)
+    s0 = np.array([np.nextafter(1.0, 0.0), 0.2, -0.3, 0.1])
+    h.s_ = s0.copy()  # a replaced s_ is picked up
+    y = A @ (2.0 * np.array([1.0, 0.2, -0.3, 0.1]) + np.array([0.5, 0, 0, 0]))
+    s_ref = hop_general(h, A, y)
+    for k in range(50):
+        h.update(A[k], y[k])
+        assert h.s_[0] < 1.0
+    np.testing.assert_allclose(h.s_, s_ref, rtol=1e-12, atol=1e-13)
+    assert h.s_[0] == np.nextafter(1.0, 0.0)
+
+
+def test_hopfield_general_path_other_output_counts_and_copies():
+    A, th, y = model(N=200, p=5, n=3, noise=0.01)
+    h = Hopfield(bounds=box(5), beta=0.02, dt=0.01)
+    s_ref = hop_general(h, A, y)
+    for k in range(200):
+        h.update(A[k], y[k])
+    np.testing.assert_allclose(h.s_, s_ref, rtol=1e-12, atol=1e-14)
+    # 2 outputs, mid-stream copies continue exactly like the original
+    A, th, y = model(N=300, p=5)
+    h = Hopfield(bounds=box(5), beta=0.02, dt=0.01)
+    for k in range(100):
+        h.update(A[k], y[k])
+    clones = [copy.deepcopy(h), pickle.loads(pickle.dumps(h))]
+    for m in [h] + clones:
+        for k in range(100, 300):
+            m.update(A[k], y[k])
+    for c in clones:
+        np.testing.assert_array_equal(c.s_, h.s_)
+        np.testing.assert_array_equal(c.theta_, h.theta_)
+
+
 # ---------------------------------------------------------------- Gradient
 def test_gradient_converges_small_eta_and_diverges_large_eta():
     A, th, y = model(N=5000, p=6, noise=0.001)
@@ -244,3 +388,20 @@ def test_metrics():
     per = d_tau(A, y, np.zeros_like(th), per_joint=True)
     np.testing.assert_allclose(per, [1.0, 1.0])
     assert d_tau(A.reshape(-1, 6), y.ravel(), np.zeros(6)) == pytest.approx(1.0)
+
+
+def test_hopfield_settle_reaches_the_box_constrained_least_squares():
+    """Settling with the log's weights: LS inside the box; the box face when LS is outside."""
+    rng = np.random.default_rng(7)
+    A = rng.normal(size=(3000, 2, 5))
+    theta = np.array([1.0, -2.0, 0.5, 3.0, 0.0])
+    y = A @ theta + 0.05 * rng.normal(size=(3000, 2))
+    ls = LeastSquares().fit(A, y).theta_
+    h = Hopfield(theta_n=0.5 * theta + 0.1, half_widths=4.0, beta=0.3, dt=0.01).fit(A, y)
+    h.settle(A, y)
+    assert np.allclose(h.theta_, ls, rtol=0, atol=1e-9)
+    # a box that excludes the truth of parameter 3: the estimate sits at (just inside) the face
+    tight = Hopfield(theta_n=np.zeros(5), bounds=(-np.full(5, 2.5), np.full(5, 2.5)), beta=0.3)
+    tight.fit(A, y).settle(A, y)
+    assert np.all(np.abs(tight.s_) < 1.0) and tight.theta_[3] > 2.49
+    assert np.all(np.isfinite(tight.theta_))

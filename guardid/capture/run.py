@@ -58,11 +58,15 @@ def capture(
     log_path,
     header: dict,
     progress: Callable[[dict], None] | None = None,
+    on_row: Callable[[float, np.ndarray, np.ndarray, np.ndarray], None] | None = None,
 ) -> CaptureResult:
     """Capture ``duration_s`` seconds of ``trajectory``; write ``log_path``.
 
     ``progress`` (if given) is called every PROGRESS_EVERY_S of wall-clock time with a dict of
     counters (rows, lost, crc_errors, framing_errors, tracking error [rad]).
+    ``on_row`` (if given) is called with every logged row as it arrives: time [s], joint
+    angles (n,) [rad], period-mean motor voltages (n,) [V] and currents (n,) [A] (online
+    identification, :mod:`guardid.online`); it runs in the capture loop, so it must be fast.
     Raises :class:`LinkError` after closing the log when the link fails.
     """
     period = description.sample_period
@@ -90,16 +94,12 @@ def capture(
             counts = np.asarray(t.counts)
             q = counts / per_rad
             sp = np.asarray(t.setpoint_counts) / per_rad
-            writer.write_row(
-                t.tick,
-                (t.tick - first_tick) * period,
-                counts,
-                q,
-                np.asarray(t.voltage_mv) * 1e-3,
-                np.asarray(t.current_ma) * 1e-3,
-                sp,
-                t.status,
-            )
+            volts = np.asarray(t.voltage_mv) * 1e-3
+            amps = np.asarray(t.current_ma) * 1e-3
+            t_s = (t.tick - first_tick) * period
+            writer.write_row(t.tick, t_s, counts, q, volts, amps, sp, t.status)
+            if on_row is not None:
+                on_row(t_s, q, volts, amps)
             sq_err += (sp - q) ** 2
             n_err += 1
             now = time.monotonic()

@@ -5,6 +5,7 @@ from guardid.commands.excite import excite
 from guardid.commands.fake_port import fake_port
 from guardid.commands.identify import identify, validate
 from guardid.commands.ports import ports
+from guardid.commands.reproduce import reproduce
 from guardid.commands.simulate import simulate
 
-COMMANDS = [simulate, excite, capture, identify, validate, fake_port, ports]
+COMMANDS = [simulate, excite, capture, identify, validate, fake_port, ports, reproduce]

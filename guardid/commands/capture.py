@@ -34,7 +34,13 @@ def _load_trajectory(path: str):
 )
 @click.option("-o", "--output", required=True, help="Log file to write (CSV).")
 @click.option("--quiet", is_flag=True, help="No progress display.")
-def capture(port, baud, robot, trajectory_path, duration, periods, timeout, output, quiet):
+@click.option(
+    "--online",
+    default=None,
+    help="Comma-separated online estimators run on the live telemetry (rls, hopfield); "
+    "estimates go to OUTPUT's .online.csv, parameter changes are reported.",
+)
+def capture(port, baud, robot, trajectory_path, duration, periods, timeout, output, quiet, online):
     """Run the trajectory on the robot in closed loop and record telemetry to OUTPUT.
 
     The default port is the built-in simulated robot. Ctrl-C puts the robot idle and
@@ -52,6 +58,7 @@ def capture(port, baud, robot, trajectory_path, duration, periods, timeout, outp
         duration = (periods or 1) * trajectory.period
     if duration <= 0:
         raise ConfigError(f"--duration: must be > 0 s, got {duration:g}")
+    tracker = _tracker(online, description, trajectory)
     port_url = port or f"sim://{robot}"
     serial_port = open_port(port_url, baud)
     session = Session(serial_port, timeout_s=timeout)
@@ -77,7 +84,8 @@ def capture(port, baud, robot, trajectory_path, duration, periods, timeout, outp
             duration,
             output,
             header,
-            progress=None if quiet else _progress,
+            progress=None if quiet else _progress_with(tracker),
+            on_row=None if tracker is None else _on_row(tracker, quiet),
         )
     finally:
         serial_port.close()
@@ -92,6 +100,8 @@ def capture(port, baud, robot, trajectory_path, duration, periods, timeout, outp
         f"CRC errors {st['crc_errors']}, framing errors {st['framing_errors']}, "
         f"sequence gaps {st['seq_gaps']}, rms tracking error {errs}"
     )
+    if tracker is not None:
+        _online_summary(tracker, output)
     if result.ended == "interrupted":
         sys.exit(130)
 
@@ -119,4 +129,63 @@ def _progress(c: dict) -> None:
         f"framing {c['framing_errors']:3d}  tracking rms [deg] {errs}   ",
         err=True,
         nl=False,
+    )
+
+
+def _tracker(online, description, trajectory):
+    """The :class:`guardid.online.OnlineIdentifier` asked for by --online, or None."""
+    if not online:
+        return None
+    from guardid.identify.pipeline import trajectory_highest_harmonic
+    from guardid.online import OnlineIdentifier
+
+    methods = tuple(m.strip() for m in online.split(",") if m.strip())
+    to_dict = getattr(trajectory, "to_dict", None)
+    harmonic = trajectory_highest_harmonic(to_dict() if to_dict else None)
+    return OnlineIdentifier(description, methods, highest_harmonic_hz=harmonic)
+
+
+def _progress_with(tracker):
+    if tracker is None:
+        return _progress
+
+    def show(c: dict) -> None:
+        click.echo(
+            f"\rrows {c['rows']:6d}  lost {c['lost']:4d}  CRC {c['crc_errors']:3d}  "
+            f"{tracker.status()}   ",
+            err=True,
+            nl=False,
+        )
+
+    return show
+
+
+def _on_row(tracker, quiet: bool):
+    def feed(t_s, q, volts, amps) -> None:
+        for report in tracker.update(t_s, q, amps):
+            click.echo(("" if quiet else "\r") + str(report), err=True)
+
+    return feed
+
+
+def _online_summary(tracker, output: str) -> None:
+    from guardid.online import online_path
+
+    path = online_path(output)
+    tracker.write_csv(path)
+    final = "; ".join(
+        f"{m.upper()} "
+        + " ".join(f"{n} {v:.4g}" for n, v in zip(tracker.names, tracker.estimate(m), strict=True))
+        for m in tracker.methods
+    )
+    click.echo(f"online estimates written to {path} ({tracker.used} of {tracker.rows} rows used)")
+    click.echo(f"final online estimates: {final}")
+    for report in tracker.reports:
+        click.echo(str(report))
+    if not tracker.reports:
+        click.echo("no parameter change detected")
+    click.echo(
+        f"online step: {tracker.us_per_row:.0f} us per row on average "
+        f"(sample period {tracker.dt * 1e3:.0f} ms), estimates lag the motion by "
+        f"{tracker.latency_s:.3f} s"
     )

@@ -60,6 +60,19 @@ def _load(log, robot_opt, columns, sample_period, mat_var, mat_columns):
     return load_run(log, mapping=mapping, description=description), description
 
 
+def _highest_harmonic(log, run):
+    """The excitation's highest frequency [Hz] from a guardid log's header, or None."""
+    from guardid.identify.pipeline import trajectory_highest_harmonic
+    from guardid.log import read_log
+
+    if run.ticks is None or getattr(run, "torque", False) or str(log).lower().endswith(".mat"):
+        return None
+    try:
+        return trajectory_highest_harmonic(read_log(log).header.get("trajectory"))
+    except Exception:  # a foreign layout: no guardid header, the spectrum rule applies
+        return None
+
+
 @click.command()
 @click.argument("log", type=click.Path(dir_okay=False))
 @click.option("--robot", default=None, help="Shipped robot or YAML path [default: the log's].")
@@ -94,10 +107,14 @@ def identify(
         run.t, run.q, run.current, description, methods=methods, cutoff_hz=cutoff, beta=beta,
         lam=lam, gradient_eta=eta, voltage_v=run.voltage, ticks=run.ticks,
         in_current_units=current_units, effort_is_torque=run.torque,
+        highest_harmonic_hz=_highest_harmonic(log, run),
     )  # fmt: skip
     click.echo(table(result, methods))
     for w in result.warnings:
         click.echo(f"warning: {w}", err=True)
+    from guardid.online.offline import track_log
+
+    tracker = track_log(run, description, methods, lam, beta, log_path=log)
     if output:
         with open(output, "w", encoding="utf-8") as f:
             yaml.safe_dump(to_yaml_dict(result, description, log), f, sort_keys=False)
@@ -106,7 +123,7 @@ def identify(
         _, A, y = identification_rows(
             run.t, run.q, run.current, description, result.cutoff_hz, current_units, run.torque
         )
-        plot(result, plot_path, A, y)
+        plot(result, plot_path, A, y, tracker=tracker)
         click.echo(f"plot written to {plot_path}")
 
 
@@ -125,9 +142,9 @@ def validate(log, params_path, robot, cutoff, **foreign):
     params = read_params(params_path)
     run, description = _load(log, robot or params["robot"], **foreign)
     names = [p["name"] for p in params["base_parameters"]]
-    from guardid.dynamics import build_model
+    from guardid.identify.pipeline import identified_names
 
-    model_names = list(build_model(description).base.names)
+    model_names = list(identified_names(description))
     if names != model_names:
         raise ConfigError(
             f"{params_path}: base_parameters: {names} do not match robot "

@@ -27,7 +27,8 @@ class Conditioned:
 
     q [rad], qd [rad/s], qdd [rad/s^2], tau [N m, or the effort's unit when
     ``torque_unit == 'effort'``]. ``mask`` (M,) bool is True for rows usable for
-    identification (not near zero velocity and not within ``edge_s`` of either end);
+    identification (not near zero velocity, not within ``stiction_guard_s`` of such a
+    sample and not within ``edge_s`` of either end);
     ``stiction`` (M,) bool is True where some joint's |qd| < ``threshold`` (n,) [rad/s].
     ``cutoff_hz`` [Hz] and ``decimation`` (k) are the values used; ``notes`` say how
     each choice was made.
@@ -61,6 +62,8 @@ def condition(
     resolution_rad=None,
     order: int = DEFAULT_ORDER,
     edge_s: float | None = None,
+    stiction_guard_s: float = 0.0,
+    flat_is_stuck: bool = False,
 ) -> Conditioned:
     """Condition a log for identification: filter, differentiate, align, decimate, mask.
 
@@ -93,6 +96,15 @@ def condition(
     edge_s : float, optional
         Rows within this time [s] of either end are masked (filter and stencil end
         effects); default one cut-off period, 1 / cutoff_hz.
+    stiction_guard_s : float
+        Also mask rows within this time [s] of a flagged (stuck or reversing) sample
+        (default 0). The low-pass smears the friction jump of a reversal and the holding
+        torque of a stuck joint (Karnopp stick/slip: friction is then whatever balances the
+        drive, not Fc sign(qd)) over about half a cut-off period on either side, so rows
+        that close to a flagged sample do not obey the friction model either.
+    flat_is_stuck : bool
+        Also flag samples whose raw position equals the previous (or next) one (no encoder
+        count in a period: the joint is held or reverses). Only used on uniform time stamps.
 
     The same zero-phase low-pass is applied to positions and efforts (parallel
     filtering), so both sides of tau = Y(q, qd, qdd) theta see the same filter; q, qd, qdd
@@ -104,8 +116,14 @@ def condition(
     if q.shape != eff.shape:
         raise ValueError(f"q {q.shape} and effort {eff.shape} must have the same shape")
     notes: list[str] = []
+    flat = None
     if is_uniform(t):
         grid, dt = t, float(np.median(np.diff(t)))
+        if flat_is_stuck:
+            same = np.zeros(q.shape, dtype=bool)
+            same[1:] = q[1:] == q[:-1]
+            same[:-1] |= same[1:]
+            flat = np.any(same, axis=1)
     else:
         grid, dt = uniform_grid(t)
         q = resample(t, q, grid)
@@ -131,11 +149,6 @@ def condition(
     else:
         tau = current_to_torque(tau, gain)
         unit = "N m"
-    k = decimation_factor(fs, cutoff_hz) if decimate is None else int(decimate)
-    if k > 1:
-        notes.append(f"decimated by {k}: {fs / k:.4g} Hz, Nyquist {fs / (2 * k):.4g} Hz")
-    sl = slice(0, None, k)
-    grid, qf, qd, qdd, tau = grid[sl], qf[sl], qd[sl], qdd[sl], tau[sl]
     if stiction_threshold is None:
         threshold = default_stiction_threshold(
             qd, resolution_rad=resolution_rad, sample_period_s=dt
@@ -143,11 +156,24 @@ def condition(
     else:
         threshold = np.broadcast_to(np.asarray(stiction_threshold, float), qd.shape[1:])
     stuck = stiction_mask(qd, threshold)
+    if flat is not None:
+        stuck = stuck | flat
+    n_flagged, n_total = int(stuck.sum()), len(stuck)
+    guard = int(round(float(stiction_guard_s) / dt))
+    near = _dilate(stuck, guard) if guard > 0 else stuck
     edge = 1.0 / cutoff_hz if edge_s is None else float(edge_s)
     inside = (grid >= grid[0] + edge) & (grid <= grid[-1] - edge)
+    k = decimation_factor(fs, cutoff_hz) if decimate is None else int(decimate)
+    if k > 1:
+        notes.append(f"decimated by {k}: {fs / k:.4g} Hz, Nyquist {fs / (2 * k):.4g} Hz")
+    sl = slice(0, None, k)
+    grid, qf, qd, qdd, tau = grid[sl], qf[sl], qd[sl], qdd[sl], tau[sl]
+    stuck, near, inside = stuck[sl], near[sl], inside[sl]
+    how = " or with no encoder count" if flat is not None else ""
     notes.append(
-        f"stiction threshold {np.array2string(threshold, precision=4)} rad/s: "
-        f"{int(stuck.sum())} of {len(stuck)} samples flagged"
+        f"stiction threshold {np.array2string(threshold, precision=4)} rad/s{how}: "
+        f"{n_flagged} of {n_total} samples flagged"
+        + (f", rows within {guard * dt:.3g} s of them masked" if guard > 0 else "")
     )
     return Conditioned(
         grid,
@@ -155,7 +181,7 @@ def condition(
         qd,
         qdd,
         tau,
-        inside & ~stuck,
+        inside & ~near,
         stuck,
         np.array(threshold),
         float(cutoff_hz),
@@ -163,3 +189,15 @@ def condition(
         unit,
         notes,
     )
+
+
+def _dilate(mask: np.ndarray, half_width: int) -> np.ndarray:
+    """True where ``mask`` is True within ``half_width`` samples (boolean (N,))."""
+    idx = np.flatnonzero(mask)
+    out = np.zeros_like(mask)
+    if idx.size:
+        diff = np.zeros(mask.size + 1, dtype=int)
+        np.add.at(diff, np.maximum(idx - half_width, 0), 1)
+        np.add.at(diff, np.minimum(idx + half_width + 1, mask.size), -1)
+        out = np.cumsum(diff[:-1]) > 0
+    return out

@@ -8,9 +8,11 @@ from .gradient import Gradient
 from .hopfield import Hopfield
 from .ls import LeastSquares, WeightedLeastSquares
 from .metrics import d_tau, d_theta
+from .mlp import MLP
 from .rls import RLS
 
 __all__ = [
+    "MLP",
     "RLS",
     "Gradient",
     "Hopfield",

@@ -4,6 +4,13 @@ Online, per sample (phi = A_k^T, shape (p, n_out)):
     K = P phi (lambda I + phi^T P phi)^-1,  theta += K (y_k - phi^T theta),
     P = (P - K phi^T P) / lambda.
 The n_out x n_out inverse is closed-form for n_out <= 2, ``np.linalg.solve`` otherwise.
+Online fast path (n_out = 2, float64 arrays; the same step up to round-off): with
+U = A_k P (= (P phi)^T, P symmetric) one product A_k [U ; theta]^T gives S = phi^T P phi and
+A_k theta, the 2 x 2 S^-1 and S^-1 e are formed in Python floats, one product
+[S^-1 ; (S^-1 e)^T] U gives K^T and (K e)^T, and P is updated in place by the rank-2 product
+U^T (S^-1 U), all into preallocated work arrays. Measured (bench/bench_estimators.py, p = 12,
+shared machine): 4.6-5 us/sample in the quieter passes, ~4x faster than padasip's FilterRLS
+fed the same rows in the same run (~10 us/sample before the fast path).
 
 Offline (``fit``) uses the information form, which is algebraically identical:
     R_k = lambda R_{k-1} + phi phi^T,  b_k = lambda b_{k-1} + phi y_k,  theta_k = R_k^-1 b_k,
@@ -22,6 +29,10 @@ from ._base import Estimator, as_blocks, as_sample, checkpoints
 
 _CHUNK_ROWS = 16384  # stacked rows per offline chunk (memory bound)
 _F64 = np.dtype(np.float64)
+_multiply = np.multiply
+_subtract = np.subtract
+_add = np.add
+_divide = np.divide
 _SHAPE2 = (2,)
 
 
@@ -45,6 +56,12 @@ class RLS(Estimator):
         self.p0 = p0
         self.theta0 = theta0
         self.history_every = int(history_every)
+
+    def __getstate__(self):
+        """Pickle / copy without the fast-path work arrays (rebuilt on the next update)."""
+        state = self.__dict__.copy()
+        state.pop("_ws", None)
+        return state
 
     def _init_state(self, p: int) -> None:
         p0 = np.asarray(self.p0, dtype=float)
@@ -105,15 +122,15 @@ class RLS(Estimator):
         Cf[5] = (a * e1 - c * e0) * r
         C.dot(U, out=G)  # [S^-1 U ; (S^-1 e)^T U] = [K^T ; (K e)^T]
         UT.dot(G2, out=T)  # K phi^T P = U^T S^-1 U, (p, p)
-        np.subtract(P, T, out=P)
+        _subtract(P, T, out=P)
         if lam != 1.0:
-            np.divide(P, lam, out=P)
-        np.add(Xth, Gth, out=Xth)  # theta += K e
+            _divide(P, lam, out=P)
+        _add(Xth, Gth, out=Xth)  # theta += K e
         self.theta_ = self._ws_theta = Xth.copy()
         self.n_samples_ += 1
         if self.n_samples_ % 64 == 0:  # remove the slow asymmetric round-off drift
-            np.add(P, P.T, out=T)
-            np.multiply(T, 0.5, out=P)
+            _add(P, P.T, out=T)
+            _multiply(T, 0.5, out=P)
         return self
 
     def _update_general(self, A_k, y_k):

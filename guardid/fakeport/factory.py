@@ -31,7 +31,8 @@ def make_device(robot: str, options: SimOptions, name: str | None = None) -> Dev
     """Build the device for ``robot``.
 
     Order: a built-in named device (``name`` or ``$GUARDID_FAKEPORT_DEVICE``), then the
-    registered factory, else the Python firmware emulator on the simulated plant.
+    registered factory, else the firmware on the simulated plant: the Python emulator
+    (``firmware=py``) or the C core built as a shared library (``firmware=c``).
     """
     name = name or os.environ.get(DEVICE_ENV) or None
     if name is not None:
@@ -41,10 +42,15 @@ def make_device(robot: str, options: SimOptions, name: str | None = None) -> Dev
         return NAMED_DEVICES[name](robot, options)
     if _factory is not None:
         return _factory(robot, options)
+    if options.firmware == "c":
+        from guardid.firmware.c_core import FirmwareBuildError, make_sim_device_c
+
+        try:
+            return make_sim_device_c(robot, options)
+        except FirmwareBuildError as exc:
+            raise SimUrlError(str(exc)) from None
     if options.firmware != "py":
-        raise SimUrlError(
-            f"firmware={options.firmware}: the C firmware core is not available yet (use py)"
-        )
+        raise SimUrlError(f"firmware={options.firmware}: unknown firmware (known: py, c)")
     from guardid.firmware import make_sim_device
 
     return make_sim_device(robot, options)

@@ -14,6 +14,11 @@ It implements the :class:`guardid.fakeport.device.Device` interface. Per tick ``
    duty, and hold it over ``k .. k+1``;
 5. send TELEMETRY for tick ``k`` while streaming.
 
+Ticks are a u32 counter compared with serial arithmetic (:func:`tick_diff`), as the README's
+timing rules require. The portable C core (``firmware_proto/core``, in the loop through
+:mod:`guardid.firmware.c_core`) implements the same state machine with the same integer
+arithmetic; tests/test_firmware_c.py holds both to identical bytes.
+
 Host frames are handled as they arrive (between ticks). Unlike the hardware, the emulator
 sends no INFO at reset: nothing is sent before the host talks, since opening a pty flushes
 its input and the unsolicited frame would only show up as a sequence gap.
@@ -37,7 +42,13 @@ CAP = ENUMS["capability"]
 
 SETPOINT_DEPTH = 8  #: setpoints buffered ahead of their tick
 DEFAULT_WATCHDOG_MS = 250
-FIRMWARE_ID = 0x47554131  #: "GUA1", the Python emulator
+FIRMWARE_ID = 0x47554131  #: "GUA1", the emulators (Python and the C core in the loop)
+TICK_MASK = 0xFFFFFFFF  #: the tick is a u32 counter
+
+
+def tick_diff(a: int, b: int) -> int:
+    """Serial tick arithmetic (README timing rules): ``(int32_t)(a - b)``."""
+    return ((a - b + 0x80000000) & TICK_MASK) - 0x80000000
 
 
 class FirmwareEmulator:
@@ -139,7 +150,7 @@ class FirmwareEmulator:
         )
 
     def _on_ping(self, frame) -> None:
-        self._send(M["PONG"](frame.msg.nonce, self.tick & 0xFFFFFFFF))
+        self._send(M["PONG"](frame.msg.nonce, self.tick))
 
     def _on_set_mode(self, frame) -> None:
         mode = frame.msg.mode
@@ -147,7 +158,7 @@ class FirmwareEmulator:
             return self._nak(frame, "bad_value")
         if mode != MODE["idle"] and self.estop:
             return self._nak(frame, "estop_active")
-        if mode != self.mode or mode == MODE["voltage"]:
+        if mode != self.mode:  # README: SET_MODE to the current mode changes nothing
             self._enter_mode(mode)
         if mode != MODE["idle"]:
             self.watchdog_tripped = False
@@ -180,9 +191,9 @@ class FirmwareEmulator:
             return self._nak(frame, "estop_active")
         if self.mode != MODE["position"]:
             return self._nak(frame, "wrong_mode")
-        if msg.tick <= self.tick:
+        if tick_diff(msg.tick, self.tick) <= 0:
             return self._nak(frame, "setpoint_late")
-        if self.buffer and msg.tick <= self.buffer[-1][0]:
+        if self.buffer and tick_diff(msg.tick, self.buffer[-1][0]) <= 0:
             return self._nak(frame, "bad_value")
         if len(self.buffer) >= SETPOINT_DEPTH:
             return self._nak(frame, "buffer_full")
@@ -216,7 +227,7 @@ class FirmwareEmulator:
         self.estop = True
         self._enter_mode(MODE["idle"])
         self._ack(frame)
-        self._send(M["FAULT"](self.tick & 0xFFFFFFFF, FAULT["estop"], 0xFF, 0))
+        self._send(M["FAULT"](self.tick, FAULT["estop"], 0xFF, 0))
 
     def _on_clear_estop(self, frame) -> None:
         self.estop = False
@@ -247,11 +258,11 @@ class FirmwareEmulator:
     def advance(self) -> None:
         """One sample period of the plant, then the firmware's tick (module docstring)."""
         sample = self.plant.step([mv * 1e-3 for mv in self.applied_mv])
-        self.tick += 1
+        self.tick = (self.tick + 1) & TICK_MASK
         self.counts = [int(c) for c in sample.counts]
         status = 0
         moving = self.mode != MODE["idle"]
-        silent_ms = (self.tick - self.last_host_tick) * self.tick_us // 1000
+        silent_ms = ((self.tick - self.last_host_tick) & TICK_MASK) * self.tick_us // 1000
         if moving and silent_ms >= self.watchdog_ms:
             self.watchdog_tripped = True
             self._enter_mode(MODE["idle"])
@@ -259,7 +270,7 @@ class FirmwareEmulator:
             moving = False
         if self.mode == MODE["position"]:
             due = False
-            while self.buffer and self.buffer[0][0] <= self.tick:
+            while self.buffer and tick_diff(self.buffer[0][0], self.tick) <= 0:
                 _, self.setpoint, self.setpoint_hold = self.buffer.popleft()
                 due = True
             if not due and not self.setpoint_hold:
@@ -292,7 +303,7 @@ class FirmwareEmulator:
         if self.streaming and self.tick % self.decimation == 0:
             self._send(
                 M["TELEMETRY"](
-                    self.tick & 0xFFFFFFFF,
+                    self.tick,
                     status,
                     self.mode,
                     tuple(self.counts),

@@ -92,8 +92,12 @@ def read_params(path) -> dict:
     return data
 
 
-def plot(result, path, A=None, y=None) -> None:
-    """Torque fit and online estimators' convergence, as a PNG (needs matplotlib)."""
+def plot(result, path, A=None, y=None, tracker=None) -> None:
+    """Torque fit and online estimators' convergence, as a PNG (needs matplotlib).
+
+    ``tracker`` (a fed :class:`guardid.online.OnlineIdentifier`, optional): its estimates over
+    time replace the batch history of the methods it tracked, with its change reports marked.
+    """
     try:
         import matplotlib
 
@@ -120,8 +124,17 @@ def plot(result, path, A=None, y=None) -> None:
     for k, m in enumerate(online, start=1):
         r = result.results[m]
         ax = axes[k, 0]
-        if r.history is not None and r.history_t is not None:
-            scale = np.where(np.abs(result.nominal) > 0, np.abs(result.nominal), 1.0)
+        scale = np.where(np.abs(result.nominal) > 0, np.abs(result.nominal), 1.0)
+        track = tracker.tracks().get(m) if tracker is not None else None
+        if track is not None and set(tracker.names) <= set(result.names):
+            idx = [list(result.names).index(n) for n in tracker.names]
+            for k, name in enumerate(tracker.names):
+                ax.plot(track.t, track.theta[:, k] / scale[idx[k]], lw=0.8, label=name)
+            ax.legend(fontsize=6, ncol=6)
+            for rep in tracker.reports:
+                if rep.method == m:
+                    ax.axvline(rep.time_s, color="k", ls=":", lw=1.0)
+        elif r.history is not None and r.history_t is not None:
             ax.plot(r.history_t, r.history / scale, lw=0.8)
         ax.set_title(f"{m.upper()} estimates / YAML value (1 = the description's value)")
         ax.set_xlabel("time [s]")

@@ -84,13 +84,27 @@ def n_joints_of(msg: tuple) -> int:
     return n
 
 
+#: msg_id -> per field: True when it is a per-joint array (precomputed for the hot path)
+_PER_JOINT_FLAGS = {m.msg_id: tuple(f.per_joint for f in m.fields) for m in SPEC.messages}
+
+
 def encode_raw(msg: tuple, seq: int, version: int = PROTOCOL_VERSION) -> bytes:
     """Header + payload + CRC of ``msg`` (before COBS), ``seq`` taken modulo 2**16."""
     spec = msg.SPEC
-    n = n_joints_of(msg)
+    flags = _PER_JOINT_FLAGS[spec.msg_id]
     vals: list[int] = []
-    for f, v in zip(spec.fields, msg, strict=True):
-        vals.extend(v) if f.per_joint else vals.append(v)
+    n = 0
+    if True in flags:
+        lens = {len(v) for v, per in zip(msg, flags, strict=True) if per}
+        n = lens.pop()
+        if lens or not 1 <= n <= MAX_JOINTS:
+            raise ValueError(
+                f"{spec.name}: per-joint arrays must share one length in 1..{MAX_JOINTS}"
+            )
+        for v, per in zip(msg, flags, strict=True):
+            vals.extend(v) if per else vals.append(v)
+    else:
+        vals = list(msg)
     try:
         body = _BODY[(spec.msg_id, n)].pack(version, spec.msg_id, seq & 0xFFFF, *vals)
     except struct.error as exc:

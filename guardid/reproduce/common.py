@@ -99,9 +99,7 @@ class Report:
         """Append a fixed-width table; floats printed with 4 decimals, str as given."""
         cells = [[_cell(c) for c in r] for r in rows]
         if widths is None:
-            widths = [
-                max(len(h), *(len(r[i]) for r in cells)) for i, h in enumerate(header)
-            ]
+            widths = [max(len(h), *(len(r[i]) for r in cells)) for i, h in enumerate(header)]
         fmt = "  ".join(f"{{:>{w}}}" for w in widths)
         self.add(fmt.format(*header), fmt.format(*("-" * w for w in widths)))
         self.add(*(fmt.format(*r) for r in cells))

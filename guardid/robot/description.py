@@ -54,11 +54,16 @@ class Drive:
 
 @dataclass(frozen=True)
 class Friction:
-    """Joint friction: tau_f = viscous*qd + coulomb*sign(qd) + offset [N m or N]."""
+    """Joint friction: tau_f = viscous*qd + coulomb*sign(qd) + offset [N m or N].
+
+    ``offset_modelled`` False (YAML ``offset: null``) declares the offset absent: it is 0
+    and identification does not estimate it (its column is dropped from the fit).
+    """
 
     viscous: float
     coulomb: float
     offset: float = 0.0
+    offset_modelled: bool = True
 
 
 @dataclass(frozen=True)

@@ -103,10 +103,12 @@ def _joint(ck: Checker, raw, path: str, index: int) -> JointDescription:
     if raw["friction"] is not None:
         fp = f"{path}.friction"
         f = ck.mapping(raw["friction"], fp, ("viscous", "coulomb"), ("offset",))
+        no_offset = "offset" in f and f["offset"] is None  # null: not modelled (0)
         friction = Friction(
             ck.number(f["viscous"], f"{fp}.viscous", nonneg=True),
             ck.number(f["coulomb"], f"{fp}.coulomb", nonneg=True),
-            ck.number(f.get("offset", 0.0), f"{fp}.offset"),
+            0.0 if no_offset else ck.number(f.get("offset", 0.0), f"{fp}.offset"),
+            offset_modelled=not no_offset,
         )
     encoder = None
     if raw.get("encoder") is not None:

@@ -1,0 +1,77 @@
+"""Tracking a logged run offline: the log replayed row by row through the online tracker.
+
+``guardid identify --method ...,rls,hopfield`` calls :func:`track_log`: the same causal
+conditioning, estimators and change detector as ``guardid capture --online`` run over the
+log's rows in order, so offline and live tracking give the same estimates and reports.
+"""
+
+from __future__ import annotations
+
+import click
+import numpy as np
+
+from guardid.online.tracker import DEFAULT_BETA, DEFAULT_LAM, ONLINE_METHODS, OnlineIdentifier
+
+
+def _explicit(name: str) -> bool:
+    """True when the running click command got option ``name`` on the command line."""
+    ctx = click.get_current_context(silent=True)
+    if ctx is None:
+        return False
+    source = ctx.get_parameter_source(name)
+    return source is not None and source.name == "COMMANDLINE"
+
+
+def log_highest_harmonic(path) -> float | None:
+    """The excitation's highest frequency [Hz] named by a guardid log's header, or None."""
+    from guardid.identify.pipeline import trajectory_highest_harmonic
+    from guardid.log import read_log
+
+    try:
+        return trajectory_highest_harmonic(read_log(path).header.get("trajectory"))
+    except Exception:  # not a guardid log: the tracker's default cut-off applies
+        return None
+
+
+def track_log(run, description, methods, lam=None, beta=None, log_path=None, echo=click.echo):
+    """Replay ``run`` (:class:`guardid.identify.runs.Run`) through an :class:`OnlineIdentifier`.
+
+    Only the methods of :data:`ONLINE_METHODS` in ``methods`` are tracked. ``lam`` (RLS
+    forgetting factor per used 15 ms row) and ``beta`` (Hopfield gain [N^2 m^2 s]) default to
+    the tracker's own (:data:`DEFAULT_LAM`, :data:`DEFAULT_BETA`); inside ``guardid
+    identify`` the --lam / --beta values are used only when given on the command line (their
+    defaults are the batch pipeline's: no forgetting would not track). Prints the settings
+    and the change reports with ``echo``; returns the fed tracker, or None when the run
+    cannot be replayed (foreign log without ticks or with measured torque).
+    """
+    online = tuple(m for m in methods if m in ONLINE_METHODS)
+    if not online:
+        return None
+    if run.ticks is None or getattr(run, "torque", False):
+        echo("tracking: skipped (needs a log of motor currents on the robot's ticks)")
+        return None
+    if lam is None or (click.get_current_context(silent=True) and not _explicit("lam")):
+        lam = DEFAULT_LAM
+    if beta is None or (click.get_current_context(silent=True) and not _explicit("beta")):
+        beta = DEFAULT_BETA
+    harmonic = log_highest_harmonic(log_path) if log_path is not None else None
+    tracker = OnlineIdentifier(
+        description, online, lam=float(lam), beta=float(beta), highest_harmonic_hz=harmonic
+    )
+    period = float(description.sample_period)
+    t = (np.asarray(run.ticks) - run.ticks[0]) * period
+    tracker.feed(t, run.q, run.current)
+    settings = []
+    if "rls" in online:
+        settings.append(f"RLS lambda {tracker.lam:g} per row")
+    if "hopfield" in online:
+        settings.append(f"Hopfield beta {tracker.beta:g}")
+    echo(
+        f"tracking (the log replayed through the online tracker: {', '.join(settings)}, "
+        f"cut-off {tracker.cutoff_hz:.3g} Hz, {tracker.used} of {tracker.rows} rows used)"
+    )
+    for report in tracker.reports:
+        echo(str(report))
+    if not tracker.reports:
+        echo("no parameter change detected")
+    return tracker

@@ -1,0 +1,400 @@
+"""On-line identification: telemetry rows -> causal conditioning -> base regressor -> estimators.
+
+:class:`OnlineIdentifier` is fed one telemetry row at a time (time [s], joint angles [rad],
+period-mean motor currents [A]) and keeps every requested estimator (``rls``, ``hopfield``)
+up to date:
+
+1. :class:`guardid.conditioning.CausalConditioner` low-passes positions and currents
+   (Butterworth, cut-off ``cutoff_hz``) and differentiates them; its output of row k
+   describes the instant t_k - ``delay_s`` (the filter's group delay + one sample);
+2. rows near stiction are held back: a row is used only if no sample within ``guard_s`` of it
+   has a joint slower than ``stiction_threshold`` [rad/s] or an encoder that did not count in
+   the period (the offline pipeline's rule). To know the flags ``guard_s`` after a row, rows
+   wait that long in a short buffer, so estimates lag the motion by ``latency_s`` =
+   ``delay_s`` + ``guard_s``; every estimate is time-stamped with the instant of the motion
+   it describes (not the arrival time);
+3. the base regressor row A (n, b) of :func:`guardid.dynamics.build_model` (identified
+   columns, :func:`guardid.identify.pipeline.identified_names`) and the joint torque
+   y = N eta kt i [N m] (minus the described friction offsets a robot declares absent) go to
+   ``estimator.update(A, y)``;
+4. the :class:`guardid.online.detector.ChangeDetector` of each estimator watches its
+   estimates and produces :class:`guardid.online.detector.ChangeReport` objects.
+
+A gap in the telemetry (a lost row: time step > 1.5 sample periods) restarts the conditioner
+(steady-state initialisation) and skips its warm-up; the estimators keep their state.
+
+Defaults (tuned on 60 s guard captures with a +1 kg payload at 30 s, see
+tests/test_online.py): RLS with regularised forgetting (:data:`DEFAULT_LAM`,
+:data:`DEFAULT_RHO`), Hopfield gain :data:`DEFAULT_BETA` with the ranges of
+:func:`prior_half_widths`.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from guardid.conditioning import CausalConditioner, counts_per_joint_rev, drive_gain
+from guardid.dynamics import build_model
+from guardid.errors import ConfigError
+from guardid.estimators import RLS, Hopfield
+from guardid.online.detector import ChangeDetector, ChangeReport, DetectorSettings
+
+ONLINE_METHODS = ("rls", "hopfield")
+DEFAULT_CUTOFF_HZ = 4.0
+"""Cut-off [Hz] when the trajectory's highest harmonic is unknown (8 x 0.5 Hz, as offline)."""
+HARMONIC_CUTOFF_FACTOR = 8.0
+"""Cut-off = this x the trajectory's highest harmonic (the offline pipeline's rule) [-]."""
+DEFAULT_LAM = 0.98
+"""RLS forgetting factor per used row: memory T / (1 - lambda) = 0.75 s of used rows at
+T = 15 ms (about 1.5 s of motion: about half the rows are near stiction and skipped) [-]."""
+DEFAULT_RHO = 0.1
+"""RLS regularised forgetting: the information forgotten per row, (1 - lambda) P^-1, is
+replaced by (1 - lambda) R0, R0 = diag(1 / (rho w_i)^2), w_i = max(|nominal_i|, 10 % of
+the median nonzero |nominal|) (the offline Hopfield prior); this bounds P by
+(rho w)^2 / (1 - lambda) in every direction, so directions the recent rows do not excite
+cannot wind up [-]."""
+DEFAULT_BETA = 10.0
+"""Hopfield gain beta [N^2 m^2 s] (smaller = faster; below about 1 the per-sample step is
+already the projection that zeroes the sample's error, and beta no longer speeds it up)."""
+DEFAULT_P0 = 1e2
+"""RLS initial covariance (times the identity) [(unit of theta / N m)^2]."""
+STICTION_FRACTION = 0.05
+"""Stiction threshold = this x each joint's velocity limit (what ``guardid excite`` calls
+slow), at least 3 encoder counts per sample period [-]."""
+GUARD_PERIODS = 0.6
+"""Rows within this many cut-off periods of a flagged sample are not used [-]."""
+WARMUP_PERIODS = 2.0
+"""Cut-off periods after the start (or a gap) whose rows are not used [-]."""
+
+
+@dataclass
+class Track:
+    """One estimator's trajectory: t (K,) [s] (instants of the motion), theta (K, b)."""
+
+    method: str
+    t: np.ndarray
+    theta: np.ndarray
+
+
+class OnlineIdentifier:
+    """Online estimators fed one telemetry row at a time (see the module docstring).
+
+    Parameters
+    ----------
+    description : ChainDescription
+        The robot (joints with drives and encoders).
+    methods : sequence of 'rls' | 'hopfield'
+    cutoff_hz : float, optional
+        Conditioning low-pass cut-off [Hz]; default :data:`HARMONIC_CUTOFF_FACTOR` x
+        ``highest_harmonic_hz`` [Hz] if given, else :data:`DEFAULT_CUTOFF_HZ`.
+    lam : float
+        RLS forgetting factor per sample period, in (0, 1].
+    beta : float
+        Hopfield gain [N^2 m^2 s].
+    stiction_threshold : scalar or (n,) [rad/s], optional
+        Default :data:`STICTION_FRACTION` x velocity limit (3 counts per period at least).
+    detector : DetectorSettings | None | False
+        Change-detector settings (None = defaults, False = no detection).
+    keep_history : bool
+        Keep every estimate (for :meth:`tracks` and :meth:`write_csv`).
+    """
+
+    def __init__(
+        self,
+        description,
+        methods=ONLINE_METHODS,
+        *,
+        cutoff_hz: float | None = None,
+        highest_harmonic_hz: float | None = None,
+        lam: float = DEFAULT_LAM,
+        beta: float = DEFAULT_BETA,
+        p0: float = DEFAULT_P0,
+        rho: float | None = DEFAULT_RHO,
+        stiction_threshold=None,
+        detector: DetectorSettings | None | bool = None,
+        keep_history: bool = True,
+    ):
+        from guardid.identify.pipeline import identified_names
+
+        unknown = [m for m in methods if m not in ONLINE_METHODS]
+        if unknown or not methods:
+            raise ConfigError(
+                f"--online: unknown {', '.join(unknown) or '(none given)'} "
+                f"(known: {', '.join(ONLINE_METHODS)})"
+            )
+        self.methods = tuple(methods)
+        self.description = description
+        self.model = build_model(description)
+        n = self.model.n_dof
+        self.dt = float(description.sample_period)
+        if cutoff_hz is None:
+            cutoff_hz = (
+                HARMONIC_CUTOFF_FACTOR * highest_harmonic_hz
+                if highest_harmonic_hz
+                else DEFAULT_CUTOFF_HZ
+            )
+        cutoff_hz = min(float(cutoff_hz), 0.4 / self.dt)
+        self.cutoff_hz = cutoff_hz
+        if stiction_threshold is None:
+            stiction_threshold = default_threshold(description)
+        self.threshold = np.broadcast_to(np.asarray(stiction_threshold, float), (n,)).copy()
+        self.gain = drive_gain(description)
+        self.conditioner = CausalConditioner(
+            n, self.dt, cutoff_hz, gain=self.gain, stiction_threshold=self.threshold
+        )
+        self.guard = max(1, int(round(GUARD_PERIODS / cutoff_hz / self.dt)))
+        self.warmup = int(round(WARMUP_PERIODS / cutoff_hz / self.dt))
+        self._lag = int(round(self.conditioner.delay_samples))
+        all_names = list(self.model.base.names)
+        self.names = tuple(identified_names(description))
+        self.free = [all_names.index(x) for x in self.names]
+        fixed = [i for i in range(len(all_names)) if i not in self.free]
+        values = self.model.base.values(self.model.params)
+        self.nominal = values[self.free]
+        self._fixed = (fixed, values[fixed]) if fixed else None
+        probe = np.full((1, n), 0.3)
+        self._known = bool(np.any(self.model.known_torque(probe, probe, probe)))
+        self.half_widths = prior_half_widths(self.nominal, self.names)
+        self.estimators = {m: self._make(m, lam, beta, p0) for m in self.methods}
+        self._r0 = None
+        if rho and lam < 1.0:
+            nz = np.abs(self.nominal[self.nominal != 0])
+            floor = 0.1 * float(np.median(nz)) if nz.size else 1.0
+            w = np.maximum(np.abs(self.nominal), floor)
+            self._r0 = np.diag((1.0 - lam) / (rho * w) ** 2)
+        self.lam, self.beta = float(lam), float(beta)
+        if detector is False:
+            self.detectors = {}
+        else:
+            settings = detector if isinstance(detector, DetectorSettings) else DetectorSettings()
+            self.detectors = {
+                m: ChangeDetector(self.names, m, settings, units=param_units(self.names))
+                for m in self.methods
+            }
+        self.keep_history = keep_history
+        self._hist_t: list[float] = []
+        self._hist = {m: [] for m in self.methods}
+        self.reports: list[ChangeReport] = []
+        self.rows = 0  #: telemetry rows fed
+        self.used = 0  #: rows given to the estimators
+        self.busy_s = 0.0  #: wall-clock time spent in :meth:`update` [s]
+        self._k = -1
+        self._t_prev = None
+        self._q_prev = None
+        self._warm_until = self.warmup
+        size = self._lag + 2 * self.guard + 8
+        self._flags = np.zeros(size, dtype=bool)
+        self._pending: deque = deque()
+
+    # -- set-up ---------------------------------------------------------------------------
+    def _make(self, method, lam, beta, p0):
+        if method == "rls":
+            return RLS(lam=lam, p0=p0, theta0=self.nominal)
+        return Hopfield(theta_n=self.nominal, half_widths=self.half_widths, beta=beta, dt=self.dt)
+
+    @property
+    def latency_s(self) -> float:
+        """Time [s] between a row's arrival and the estimator update it feeds."""
+        return self.conditioner.delay_s + self.guard * self.dt
+
+    @property
+    def us_per_row(self) -> float:
+        """Mean wall-clock cost of :meth:`update` per telemetry row [us]."""
+        return 1e6 * self.busy_s / max(self.rows, 1)
+
+    # -- the stream -----------------------------------------------------------------------
+    def update(self, time_s: float, q_rad, current_a) -> list[ChangeReport]:
+        """Feed one telemetry row: time [s], joint angles (n,) [rad], currents (n,) [A].
+
+        Returns the change reports completed by this row (usually none).
+        """
+        started = time.perf_counter()
+        q = np.asarray(q_rad, dtype=float)
+        cur = np.asarray(current_a, dtype=float)
+        if self._t_prev is not None and time_s - self._t_prev > 1.5 * self.dt:
+            self._restart()
+        self._t_prev = float(time_s)
+        self._k += 1
+        k = self._k
+        flags, size = self._flags, self._flags.size
+        flags[k % size] = False
+        if self._q_prev is not None and bool(np.any(q == self._q_prev)):
+            flags[k % size] = True  # no encoder count in the period: held or reversing
+            flags[(k - 1) % size] = True
+        self._q_prev = q
+        out = self.conditioner.update(q, cur)
+        j = k - self._lag
+        if out.stiction[0] or j < self._warm_until:
+            flags[j % size] = True
+        t_j = float(time_s) - self.conditioner.delay_s
+        self._pending.append((j, t_j, out.q[0], out.qd[0], out.qdd[0], out.tau[0]))
+        reports: list[ChangeReport] = []
+        if len(self._pending) > self.guard:
+            j0, t0, q0, qd0, qdd0, tau0 = self._pending.popleft()
+            g = self.guard
+            idx = np.arange(j0 - g, j0 + g + 1) % size
+            if not flags[idx].any():
+                reports = self._estimate(t0, q0, qd0, qdd0, tau0)
+        self.rows += 1
+        self.busy_s += time.perf_counter() - started
+        return reports
+
+    def feed(self, t_s, q_rad, current_a) -> list[ChangeReport]:
+        """Feed many rows (N,), (N, n), (N, n) in order (a replay); returns their reports."""
+        reports: list[ChangeReport] = []
+        rows = zip(np.asarray(t_s, float), np.asarray(q_rad), np.asarray(current_a), strict=True)
+        for t, q, c in rows:
+            reports += self.update(float(t), q, c)
+        return reports
+
+    def _restart(self) -> None:
+        """After a gap: fresh conditioner, no pending rows, a new warm-up."""
+        self.conditioner.reset()
+        self._pending.clear()
+        self._q_prev = None
+        self._warm_until = self._k + 1 + self.warmup
+
+    def _estimate(self, t, q, qd, qdd, tau) -> list[ChangeReport]:
+        model = self.model
+        A_all = model.base_regressor(q[None], qd[None], qdd[None])
+        y = tau
+        if self._known:
+            y = y - model.known_torque(q[None], qd[None], qdd[None])[0]
+        A_all = A_all[0]
+        if self._fixed is not None:
+            cols, vals = self._fixed
+            y = y - A_all[:, cols] @ vals
+        A = np.ascontiguousarray(A_all[:, self.free])
+        y = np.ascontiguousarray(y, dtype=float)
+        self.used += 1
+        reports = []
+        if self.keep_history:
+            self._hist_t.append(t)
+        for m, est in self.estimators.items():
+            est.update(A, y)
+            if m == "rls" and self._r0 is not None:
+                est.P_ = np.linalg.inv(np.linalg.inv(est.P_) + self._r0)
+            theta = est.theta_
+            if self.keep_history:
+                self._hist[m].append(theta)
+            det = self.detectors.get(m)
+            if det is not None:
+                rep = det.update(t, theta)
+                if rep is not None:
+                    reports.append(rep)
+        self.reports += reports
+        return reports
+
+    # -- results --------------------------------------------------------------------------
+    def estimate(self, method: str) -> np.ndarray:
+        """Current estimate (b,) of ``method`` (the nominal values before the first row)."""
+        theta = getattr(self.estimators[method], "theta_", None)
+        return self.nominal.copy() if theta is None else np.asarray(theta, dtype=float)
+
+    def tracks(self) -> dict[str, Track]:
+        """Every kept estimate per method (needs ``keep_history``)."""
+        t = np.asarray(self._hist_t, dtype=float)
+        b = len(self.names)
+        return {
+            m: Track(m, t, np.asarray(h, dtype=float).reshape(len(t), b))
+            for m, h in self._hist.items()
+        }
+
+    def status(self, names=("MX2R", "MY2")) -> str:
+        """Compact progress text: selected current estimates per method, plus the last change."""
+        shown = [x for x in names if x in self.names] or list(self.names[:2])
+        parts = []
+        for m in self.methods:
+            theta = self.estimate(m)
+            vals = " ".join(f"{x} {theta[self.names.index(x)]:.3f}" for x in shown)
+            parts.append(f"{m.upper()} {vals}")
+        text = " | ".join(parts)
+        if self.reports:
+            text += f" | change at {self.reports[-1].time_s:.1f} s"
+        return text
+
+    def write_csv(self, path) -> None:
+        """Write the kept estimates: time_s, estimator, one column per base parameter [SI]."""
+        tracks = self.tracks()
+        with open(path, "w", newline="", encoding="utf-8") as f:
+            w = csv.writer(f)
+            w.writerow(["time_s", "estimator", *self.names])
+            for m, tr in tracks.items():
+                for t, row in zip(tr.t, tr.theta, strict=True):
+                    w.writerow([f"{t:.4f}", m, *(f"{v:.6g}" for v in row)])
+
+
+def read_tracks_csv(path) -> tuple[tuple[str, ...], dict[str, Track]]:
+    """Read a file of :meth:`OnlineIdentifier.write_csv`: (names, {method: Track})."""
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = list(csv.reader(f))
+    names = tuple(rows[0][2:])
+    out: dict[str, list] = {}
+    for r in rows[1:]:
+        out.setdefault(r[1], []).append([float(x) for x in [r[0], *r[2:]]])
+    tracks = {}
+    for m, data in out.items():
+        arr = np.asarray(data, dtype=float)
+        tracks[m] = Track(m, arr[:, 0], arr[:, 1:])
+    return names, tracks
+
+
+def online_path(log_path) -> str:
+    """Where the estimates of a capture to ``log_path`` go: run.csv -> run.online.csv."""
+    s = str(log_path)
+    return (s[:-4] if s.lower().endswith(".csv") else s) + ".online.csv"
+
+
+def default_threshold(description) -> np.ndarray:
+    """Stiction threshold (n,) [rad/s]: :data:`STICTION_FRACTION` x velocity limit, at least
+    3 encoder counts per sample period."""
+    res = 2.0 * math.pi / counts_per_joint_rev(description)
+    floor = 3.0 * res / float(description.sample_period)
+    vmax = np.array(
+        [
+            j.limits.velocity if j.limits is not None and j.limits.velocity else math.inf
+            for j in description.joints
+        ]
+    )
+    thr = np.where(np.isfinite(vmax), STICTION_FRACTION * vmax, floor)
+    return np.maximum(thr, floor)
+
+
+def prior_half_widths(nominal: np.ndarray, names) -> np.ndarray:
+    """Prior ranges (b,) [SI]: +-100 % of each nominal value, and at least the largest
+    |nominal| of the parameters with the same unit (so that a small parameter such as MY2
+    gets the range of its kind, MX2R, and a Hopfield gain of the same order); 1 if all of a
+    unit are zero. The Hopfield box half-widths."""
+    nominal = np.asarray(nominal, dtype=float)
+    units = np.array(param_units(names))
+    out = np.abs(nominal).copy()
+    for u in set(units.tolist()):
+        same = units == u
+        top = float(np.max(np.abs(nominal[same])))
+        out[same] = np.maximum(out[same], top if top > 0 else 1.0)
+    return out
+
+
+def param_units(names) -> tuple[str, ...]:
+    """SI unit of each base parameter by its name (inertia, first moment, mass, friction)."""
+    out = []
+    for x in names:
+        if x.startswith(("MX", "MY", "MZ")):
+            out.append("kg m")
+        elif x.startswith(("XX", "XY", "XZ", "YY", "YZ", "ZZ", "Ia")):
+            out.append("kg m^2")
+        elif x.startswith("Fv"):
+            out.append("N m s/rad")
+        elif x.startswith(("Fc", "Fo")):
+            out.append("N m")
+        elif x.startswith("M"):
+            out.append("kg")
+        else:
+            out.append("")
+    return tuple(out)

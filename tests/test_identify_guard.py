@@ -1,0 +1,136 @@
+"""Identification acceptance on the simulated guard robot (known truth = the YAML).
+
+One optimised excitation (``guardid excite``), captured twice for 60 s from sim://guard:
+the default seed (identification) and seed 2 on a second trajectory (validation).
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from guardid.dynamics import build_model
+from guardid.estimators import LeastSquares, d_tau
+from guardid.identify import identification_rows, identify
+from guardid.identify.pipeline import identified_names, run_hopfield, trajectory_highest_harmonic
+from guardid.identify.runs import load_run
+from guardid.log import read_log
+from guardid.robot import load_robot
+
+GUARD = load_robot("guard")
+
+
+def _cli(*args):
+    subprocess.run([sys.executable, "-m", "guardid", *args], check=True, capture_output=True)
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("ident")
+    out = {}
+    for name, seed, port in (("a", 0, "sim://guard"), ("b", 1, "sim://guard?seed=2")):
+        traj = d / f"traj_{name}.yaml"
+        _cli("excite", "--robot", "guard", "--seed", str(seed), "-o", str(traj))
+        log = d / f"run_{name}.csv"
+        _cli("capture", "--trajectory", str(traj), "--duration", "60", "--port", port,
+             "--quiet", "-o", str(log))  # fmt: skip
+        out[name] = log
+    return out
+
+
+@pytest.fixture(scope="module")
+def truth():
+    model = build_model(GUARD)
+    values = dict(zip(model.base.names, model.base.values(model.params), strict=True))
+    return np.array([values[n] for n in identified_names(GUARD)])
+
+
+def _hh(log):
+    return trajectory_highest_harmonic(read_log(log).header.get("trajectory"))
+
+
+@pytest.fixture(scope="module")
+def result(logs):
+    run = load_run(logs["a"])
+    return identify(run.t, run.q, run.current, GUARD, voltage_v=run.voltage, ticks=run.ticks,
+                    highest_harmonic_hz=_hh(logs["a"]))  # fmt: skip
+
+
+def test_offsets_declared_absent_are_not_identified(result):
+    assert "Fo1" not in result.names and "Fo2" not in result.names
+    assert result.cutoff_hz == pytest.approx(4.0)
+
+
+@pytest.mark.parametrize("method", ["ls", "wls"])
+def test_well_determined_parameters_within_2pct_and_all_within_3_sigma(result, truth, method):
+    r = result.results[method]
+    good = r.rel_std_pct < 5.0
+    assert good.sum() >= 8  # inertias, gravity and all four friction parameters
+    err = np.abs(r.theta - truth) / np.abs(np.where(truth == 0, 1.0, truth))
+    assert np.all(err[good] < 0.02), dict(zip(np.array(result.names)[good], err[good], strict=True))
+    assert np.all(np.abs(r.theta - truth) < 3.0 * r.std)
+
+
+def test_rls_ends_on_ls(result):
+    ls, rls = result.results["ls"].theta, result.results["rls"].theta
+    assert np.max(np.abs(rls - ls) / np.abs(ls)) < 1e-3
+
+
+def test_dtau_on_second_run_below_5pct(result, logs):
+    run = load_run(logs["b"])
+    _, A, y = identification_rows(run.t, run.q, run.current, GUARD, result.cutoff_hz)
+    for m in ("ls", "wls"):
+        assert d_tau(A, y, result.results[m].theta) < 0.05
+
+
+def test_motors_r_and_ke_within_3pct(result):
+    assert len(result.motors) == 2
+    for motor, joint in zip(result.motors, GUARD.joints, strict=True):
+        assert motor.resistance == pytest.approx(joint.drive.resistance, rel=0.03)
+        assert motor.ke == pytest.approx(joint.drive.ke, rel=0.03)
+
+
+@pytest.mark.parametrize("beta", [1e-4, 1e-3, 1e-2, 1e-1, 1.0])
+def test_hopfield_stable_for_every_beta(logs, truth, beta):
+    for log in logs.values():
+        run = load_run(log)
+        c, A, y = identification_rows(
+            run.t, run.q, run.current, GUARD, highest_harmonic_hz=_hh(log)
+        )
+        dt = float(np.median(np.diff(c.t[c.mask])))
+        for nominal in (truth, 0.7 * truth):
+            h = run_hopfield(A, y, nominal, beta, dt, passes=3)
+            assert np.all(np.isfinite(h.history_)) and np.all(np.isfinite(h.theta_))
+            assert np.all(np.abs(h.s_) < 1.0)
+
+
+def test_hopfield_ends_within_1pct_of_ls(logs, truth):
+    """From a wrong prior (0.7 x truth) the network runs over the log, then settles with the
+    log's weights: its equilibrium is the LS estimate (inside the box)."""
+    run = load_run(logs["a"])
+    c, A, y = identification_rows(run.t, run.q, run.current, GUARD, highest_harmonic_hz=0.5)
+    dt = float(np.median(np.diff(c.t[c.mask])))
+    ls = LeastSquares().fit(A, y)
+    h = run_hopfield(A, y, 0.7 * truth, 0.1, dt)
+    online = np.array(h.theta_)
+    h.settle(A, y)
+    big = np.abs(ls.theta_) > 3 * ls.std_  # relative error is meaningless for ~0 values
+    assert np.max(np.abs(h.theta_ - ls.theta_)[big] / np.abs(ls.theta_[big])) < 0.01
+    assert np.max(np.abs(h.theta_ - ls.theta_) / ls.std_) < 0.01
+    # the online pass alone is already in the neighbourhood (a few standard deviations)
+    assert np.max(np.abs(online - ls.theta_) / np.maximum(ls.std_, 1e-3 * np.abs(ls.theta_))) < 50
+
+
+def test_cli_identify_and_validate(logs, tmp_path):
+    params = tmp_path / "p.yaml"
+    res = subprocess.run([sys.executable, "-m", "guardid", "identify", str(logs["a"]), "-o",
+                          str(params)], capture_output=True, text=True, check=True)  # fmt: skip
+    assert "cut-off 4 Hz" in res.stdout and "Fo1" not in res.stdout
+    res = subprocess.run(
+        [sys.executable, "-m", "guardid", "validate", str(logs["b"]), "--params", str(params)],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    assert "LS" in res.stdout
