@@ -275,9 +275,9 @@ class Hopfield(Estimator):
         step (step length h with h/beta * max eig(S G S) = 1e9, so each step is nearly the
         full Newton step of the batch cost even along its weakest direction). The network's
         Lyapunov function is then the log's squared prediction error, so its equilibrium is
-        the least-squares estimate inside the box (the box-constrained optimum when LS lies outside). Stops when the
-        largest change of s falls below ``tol`` or after ``max_steps``; ``settle_steps_``
-        records how many steps it took. The online pass (``fit``/``update``) is unchanged;
+        the least-squares estimate inside the box (the box-constrained optimum when LS lies
+        outside). Stops when the largest change of s falls below ``tol`` or after
+        ``max_steps``; ``settle_steps_`` records how many steps it took. The online pass (``fit``/``update``) is unchanged;
         this gives its offline end point without the fluctuation a fixed beta leaves.
         """
         A3, y2 = as_blocks(A, y)
