@@ -277,8 +277,9 @@ class Hopfield(Estimator):
         Lyapunov function is then the log's squared prediction error, so its equilibrium is
         the least-squares estimate inside the box (the box-constrained optimum when LS lies
         outside). Stops when the largest change of s falls below ``tol`` or after
-        ``max_steps``; ``settle_steps_`` records how many steps it took. The online pass (``fit``/``update``) is unchanged;
-        this gives its offline end point without the fluctuation a fixed beta leaves.
+        ``max_steps``; ``settle_steps_`` records how many steps it took. The online pass
+        (``fit``/``update``) is unchanged; this gives its offline end point without the
+        fluctuation a fixed beta leaves.
         """
         A3, y2 = as_blocks(A, y)
         N = A3.shape[0]
