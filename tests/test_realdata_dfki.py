@@ -54,22 +54,18 @@ def model():
 
 
 def regressor_with_rotor(model, q, qd, qdd):
-    """Base regressor (N, 2, b) plus one column for Ia2 (joint-2 rotor term, qdd2 on joint 2).
-
-    The lab's rotor inertia Ir (not in the YAML schema) adds 37 Ir, -6 Ir, 36 Ir to M11, M12,
-    M22; in our base parameters that is ZZ1R += 43 Ir, ZZ2R -= 6 Ir and Ia2 = 42 Ir.
-    """
-    y = model.base_regressor(q, qd, qdd)
-    col = np.zeros(y.shape[:2] + (1,))
-    col[:, 1, 0] = qdd[:, 1]
-    return np.concatenate([y, col], axis=2)
+    """Base regressor (N, 2, b): the YAML's mechanical-only rotors (``rotor``, the elbow's
+    coupled: -1) give the lab's 37 Ir, -6 Ir, 36 Ir in M11, M12, M22 exactly; base
+    parameters ZZ1R = I1 + m2 l1^2 + Ia1, ZZ2R = I2, Ia2 = 36 Ir (Ia1 = 36 Ir grouped)."""
+    return model.base_regressor(q, qd, qdd)
 
 
 def to_lab(model, theta):
-    """The README's four base parameters (and Ir) from our base parameters + Ia2."""
-    b = dict(zip(model.base.names, theta[:-1], strict=True))
-    ir = theta[-1] / 42.0
-    return np.array([b["ZZ1R"] - 43 * ir, b["MX1R"], b["MX2R"], b["ZZ2R"] + 6 * ir]), ir
+    """The README's four base parameters (and Ir) from our base parameters; the two motors
+    are alike (the lab's one Ir), so Ia1 = Ia2."""
+    b = dict(zip(model.base.names, theta, strict=True))
+    ir = b["Ia2"] / 36.0
+    return np.array([b["ZZ1R"] - b["Ia2"], b["MX1R"], b["MX2R"], b["ZZ2R"]]), ir
 
 
 def d_tau(tau, pred):
@@ -82,14 +78,11 @@ def test_yaml_reproduces_closed_form_model(model):
     rng = np.random.default_rng(7)
     q = rng.uniform(-np.pi, np.pi, (200, 2))
     qd, qdd = rng.normal(0, 3, (200, 2)), rng.normal(0, 20, (200, 2))
-    no_rotor = dict(PUB, Ir=0.0)
     ours = model.inverse_dynamics(q, qd, qdd)
-    np.testing.assert_allclose(ours, lab_torque(q, qd, qdd, no_rotor, "sign"), atol=1e-12)
-    # with the rotor column the full closed form (Ir included) is reproduced exactly
+    np.testing.assert_allclose(ours, lab_torque(q, qd, qdd, PUB, "sign"), atol=1e-12)
+    # the base regressor reproduces the full closed form (Ir included) exactly
     ir = PUB["Ir"]
-    theta = np.append(model.base.values(model.params), 42 * ir)
-    theta[model.base.names.index("ZZ1R")] += 43 * ir
-    theta[model.base.names.index("ZZ2R")] -= 6 * ir
+    theta = model.base.values(model.params)
     pred = regressor_with_rotor(model, q, qd, qdd) @ theta
     np.testing.assert_allclose(pred, lab_torque(q, qd, qdd, PUB, "sign"), atol=1e-12)
     lab4, ir_back = to_lab(model, theta)

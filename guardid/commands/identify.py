@@ -73,14 +73,32 @@ def _highest_harmonic(log, run):
         return None
 
 
+def _load_all(logs, robot_opt, foreign):
+    """(runs, description) of one or more logs; every log must name the same robot."""
+    runs, description = [], None
+    for log in logs:
+        run, desc = _load(log, robot_opt, **foreign)
+        if description is not None and desc.name != description.name:
+            raise ConfigError(f"{log}: robot {desc.name}, but {logs[0]} is {description.name}")
+        runs.append(run)
+        description = description or desc
+    return runs, description
+
+
+_PARALLEL_HELP = (
+    "Gautier's parallel filter: low-pass the regressor and the torque at HZ [Hz] after the "
+    "cut-off filter, then decimate (docs/FOREIGN_LOGS.md) [default: off]."
+)
+
+
 @click.command()
-@click.argument("log", type=click.Path(dir_okay=False))
+@click.argument("log", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.option("--robot", default=None, help="Shipped robot or YAML path [default: the log's].")
 @click.option(
     "--method",
     default="ls,wls,rls,hopfield",
     show_default=True,
-    help="Comma-separated: ls, wls, rls, hopfield, gradient.",
+    help="Comma-separated: ls, wls, rls, hopfield, gradient, mlp.",
 )
 @click.option("--cutoff", type=float, default=None, help="Low-pass cut-off [Hz] [default: auto].")
 @click.option("--beta", type=float, default=0.01, show_default=True, help="Hopfield gain beta.")
@@ -89,25 +107,39 @@ def _highest_harmonic(log, run):
 @click.option("--current-units", is_flag=True, help="Identify in current units (gain unknown).")
 @click.option("-o", "--output", default=None, help="Write the parameters to this YAML file.")
 @click.option("--plot", "plot_path", default=None, help="Write a PNG report (matplotlib).")
+@click.option("--parallel-filter", "parallel_hz", type=float, default=None, help=_PARALLEL_HELP)
 @_foreign_options
 def identify(
-    log, robot, method, cutoff, beta, lam, eta, current_units, output, plot_path, **foreign
-):
-    """Identify the robot's base parameters and motor constants from LOG.
+    log, robot, method, cutoff, beta, lam, eta, current_units, output, plot_path, parallel_hz,
+    **foreign,
+):  # fmt: skip
+    """Identify the robot's base parameters and motor constants from LOG [LOG ...].
 
-    LOG is a guardid log, or a foreign CSV / MATLAB .mat log read through --columns.
+    LOG is a guardid log, or a foreign CSV / MATLAB .mat log read through --columns (the
+    same options apply to every LOG). Several logs: each is conditioned on its own and the
+    identification rows are stacked (one fit); motor constants come from the first.
     """
-    from guardid.identify import identification_rows
     from guardid.identify import identify as run_identify
+    from guardid.identify.pipeline import stacked_rows
     from guardid.identify.report import plot, table, to_yaml_dict
 
-    run, description = _load(log, robot, **foreign)
+    logs, (runs, description) = log, _load_all(log, robot, foreign)
+    run, log = runs[0], logs[0]
+    if len({r.torque for r in runs}) > 1:
+        raise ConfigError(f"{logs[-1]}: mixes measured torque and motor current with {log}")
     methods = tuple(m.strip() for m in method.split(",") if m.strip())
+    several = len(runs) > 1
+    arrays = {
+        k: [getattr(r, k) for r in runs] if several else getattr(run, k)
+        for k in ("t", "q", "current", "voltage", "ticks")
+    }
+    if several and any(v is None for v in arrays["voltage"] + arrays["ticks"]):
+        arrays["voltage"] = arrays["ticks"] = None
     result = run_identify(
-        run.t, run.q, run.current, description, methods=methods, cutoff_hz=cutoff, beta=beta,
-        lam=lam, gradient_eta=eta, voltage_v=run.voltage, ticks=run.ticks,
-        in_current_units=current_units, effort_is_torque=run.torque,
-        highest_harmonic_hz=_highest_harmonic(log, run),
+        arrays["t"], arrays["q"], arrays["current"], description, methods=methods,
+        cutoff_hz=cutoff, beta=beta, lam=lam, gradient_eta=eta, voltage_v=arrays["voltage"],
+        ticks=arrays["ticks"], in_current_units=current_units, effort_is_torque=run.torque,
+        highest_harmonic_hz=_highest_harmonic(log, run), parallel_filter_hz=parallel_hz,
     )  # fmt: skip
     click.echo(table(result, methods))
     for w in result.warnings:
@@ -117,30 +149,46 @@ def identify(
     tracker = track_log(run, description, methods, lam, beta, log_path=log)
     if output:
         with open(output, "w", encoding="utf-8") as f:
-            yaml.safe_dump(to_yaml_dict(result, description, log), f, sort_keys=False)
+            source = log if not several else ", ".join(str(x) for x in logs)
+            data = to_yaml_dict(result, description, source)
+            if parallel_hz:
+                data["parallel_filter_hz"] = float(parallel_hz)
+            yaml.safe_dump(data, f, sort_keys=False)
         click.echo(f"parameters written to {output}")
     if plot_path:
-        _, A, y = identification_rows(
-            run.t, run.q, run.current, description, result.cutoff_hz, current_units, run.torque
-        )
+        _, A, y = stacked_rows(
+            [(r.t, r.q, r.current) for r in runs], description, result.cutoff_hz,
+            current_units, run.torque, parallel_filter_hz=parallel_hz,
+        )  # fmt: skip
         plot(result, plot_path, A, y, tracker=tracker)
         click.echo(f"plot written to {plot_path}")
 
 
 @click.command()
-@click.argument("log", type=click.Path(dir_okay=False))
+@click.argument("log", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.option("--params", "params_path", required=True, help="params.yaml from guardid identify.")
 @click.option("--robot", default=None, help="Shipped robot or YAML path [default: the params'].")
 @click.option("--cutoff", type=float, default=None, help="Low-pass cut-off [Hz].")
+@click.option(
+    "--parallel-filter",
+    "parallel_hz",
+    type=float,
+    default=None,
+    help="Parallel filter [Hz] [default: the params' (parallel_filter_hz), else off].",
+)
 @_foreign_options
-def validate(log, params_path, robot, cutoff, **foreign):
-    """Torque prediction error (d_tau) of identified parameters on another run."""
+def validate(log, params_path, robot, cutoff, parallel_hz, **foreign):
+    """Torque prediction error (d_tau) of identified parameters on other runs (LOG [LOG ...]).
+
+    Several logs: their rows are stacked (each conditioned on its own), one d_tau.
+    """
     from guardid.estimators import d_tau
-    from guardid.identify import identification_rows
+    from guardid.identify.pipeline import stacked_rows
     from guardid.identify.report import read_params
 
     params = read_params(params_path)
-    run, description = _load(log, robot or params["robot"], **foreign)
+    runs, description = _load_all(log, robot or params["robot"], foreign)
+    run = runs[0]
     names = [p["name"] for p in params["base_parameters"]]
     from guardid.identify.pipeline import identified_names
 
@@ -151,9 +199,11 @@ def validate(log, params_path, robot, cutoff, **foreign):
             f"{description.name}'s {model_names}"
         )
     current_units = params.get("torque_unit") != "N m"
-    cond, A, y = identification_rows(
-        run.t, run.q, run.current, description, cutoff or params.get("cutoff_hz"), current_units,
-        run.torque,
+    if parallel_hz is None:
+        parallel_hz = params.get("parallel_filter_hz")
+    cond, A, y = stacked_rows(
+        [(r.t, r.q, r.current) for r in runs], description, cutoff or params.get("cutoff_hz"),
+        current_units, run.torque, parallel_filter_hz=parallel_hz,
     )  # fmt: skip
     joints = [j.name for j in description.joints]
     for m, entry in params["methods"].items():

@@ -2,8 +2,13 @@
 
 Parameter vector (p,): per link j (1-based) XXj XYj XZj YYj YZj ZZj MXj MYj MZj Mj
 (inertia tensor about the origin of standard-DH frame j [kg m^2], first moments m*c [kg m],
-mass [kg]); then per joint with a drive Iaj = N^2 J_rotor [kg m^2]; then per joint with
-friction Fvj [N m s/rad] Fcj [N m] Foj [N m].
+mass [kg]); then per joint with a drive or a mechanical-only rotor Iaj = N^2 J_rotor
+[kg m^2]; then per joint with friction Fvj [N m s/rad] Fcj [N m] Foj [N m].
+
+Rotor j adds Iaj u_j u_j^T to M(q) with u_j = e_j, or, for a coupled rotor (YAML
+``rotor.coupling`` = s = +-1: the rotor sits on link j-1 and spins at v . q', v_k = c_k for
+the earlier revolute joints, c_k = +-1 the sign of z_k . z_j, and v_j = s N),
+u_j = v / N. With parallel axes u_j is constant, so the term has no velocity part.
 """
 
 from __future__ import annotations
@@ -29,11 +34,14 @@ class ChainModel:
         names = [f"{s}{k + 1}" for k in range(n) for s in STANDARD_NAMES]
         values = [v for link in description.links for v in link.standard_parameters()]
         self._ia_index: list[int | None] = [None] * n
+        self._ia_vector: list[np.ndarray | None] = [None] * n
         for j, joint in enumerate(description.joints):
-            if joint.drive is not None:
+            inertia = joint.reflected_inertia
+            if inertia is not None:
                 self._ia_index[j] = len(names)
+                self._ia_vector[j] = _rotor_vector(description, j)
                 names.append(f"Ia{j + 1}")
-                values.append(joint.drive.reflected_inertia)
+                values.append(inertia)
         self._fric_index: list[int | None] = [None] * n
         for j, joint in enumerate(description.joints):
             if joint.friction is not None:
@@ -54,7 +62,7 @@ class ChainModel:
             codegen.NAMESPACE_VECTOR,
         )
         fast_ns = dict(codegen.NAMESPACE_SCALAR, P0=self.params.tolist())
-        src = codegen.fast_sources(description, self._ia_index)
+        src = codegen.fast_sources(description, self._ia_index, self._ia_vector)
         self.mass_matrix_1 = codegen.compile_source(src, "mass_matrix_1", fast_ns)
         self.bias_1 = codegen.compile_source(src, "bias_1", fast_ns)
         """Fast single-sample M(q) (n, n) and bias(q, qd) (n,); params default to true ones."""
@@ -67,7 +75,8 @@ class ChainModel:
         self._rigid(q, qd, qdd, out)
         for j in range(self.n_dof):
             if self._ia_index[j] is not None:
-                out[:, j, self._ia_index[j]] = qdd[:, j]
+                u = self._ia_vector[j]
+                out[:, :, self._ia_index[j]] += np.outer(qdd @ u, u)
             k = self._fric_index[j]
             if k is not None:
                 out[:, j, k] = qd[:, j]
@@ -104,7 +113,8 @@ class ChainModel:
         out = np.zeros_like(qd)
         for j in range(self.n_dof):
             if self._ia_index[j] is not None:
-                out[:, j] += p[self._ia_index[j]] * qdd[:, j]
+                u = self._ia_vector[j]
+                out += p[self._ia_index[j]] * np.outer(qdd @ u, u)
             k = self._fric_index[j]
             if friction and k is not None:
                 out[:, j] += p[k] * qd[:, j] + p[k + 1] * np.sign(qd[:, j]) + p[k + 2]
@@ -135,6 +145,22 @@ class ChainModel:
         m = self.mass_matrix(q, params)
         rhs = np.atleast_2d(np.asarray(tau, dtype=float)) - self.bias(q, qd, params)
         return np.linalg.solve(m, rhs[..., None])[..., 0]
+
+
+def _rotor_vector(description: ChainDescription, j: int) -> np.ndarray:
+    """u_j (n,): rotor j's inertia term is Iaj u_j u_j^T in M (see the module docstring)."""
+    u = np.zeros(description.n_dof)
+    u[j] = 1.0
+    rotor = description.joints[j].rotor
+    if description.joints[j].drive is not None or rotor is None or rotor.coupling == 0:
+        return u
+    u[j] = float(rotor.coupling)
+    sign = 1.0
+    for k in range(j - 1, -1, -1):  # z_j = cos(alpha_k) ... cos(alpha_{j-1}) z_k
+        sign *= float(np.sign(np.cos(description.joints[k].dh.alpha)))
+        if description.joints[k].type == "revolute":
+            u[k] = sign / rotor.gear_ratio
+    return u
 
 
 def _states(q, qd, qdd):

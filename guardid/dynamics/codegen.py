@@ -258,11 +258,14 @@ def vector_regressor_source(chain: ChainDescription) -> str:
     return "\n".join(head + body + ["    return out", ""])
 
 
-def fast_sources(chain: ChainDescription, extra_inertia: list[int | None]) -> str:
+def fast_sources(
+    chain: ChainDescription, extra_inertia: list[int | None], extra_vectors=None
+) -> str:
     """Source of ``mass_matrix_1(q, params=None)`` and ``bias_1(q, qd, params=None)``.
 
     ``extra_inertia[j]`` is the index in the parameter vector of joint j's reflected rotor
-    inertia (added to M[j, j]) or None. Friction is not part of either function.
+    inertia or None; it adds p[idx] u u^T to M with u = ``extra_vectors[j]`` (n,) (constant;
+    default e_j: M[j, j] only). Friction is not part of either function.
     """
     n = chain.n_dof
     qn = [f"q{j}" for j in range(n)]
@@ -280,8 +283,13 @@ def fast_sources(chain: ChainDescription, extra_inertia: list[int | None]) -> st
     for j in range(n):
         for i in range(j + 1):
             terms = [(y, c) for c, y in enumerate(cols[i][j]) if y != 0.0]
-            if i == j and extra_inertia[j] is not None:
-                terms.append((1.0, extra_inertia[j]))
+            for k, idx in enumerate(extra_inertia):
+                if idx is None:
+                    continue
+                u = extra_vectors[k] if extra_vectors is not None else None
+                coef = float(u[j] * u[i]) if u is not None else float(i == j == k)
+                if coef != 0.0:
+                    terms.append((coef, idx))
             entries[j, i] = _sum_expr(terms)
     rows = ", ".join(
         "[" + ", ".join(entries[max(a, b), min(a, b)] for b in range(n)) + "]" for a in range(n)

@@ -39,6 +39,12 @@ SETPOINT_FLAGS = ENUMS["setpoint_flags"]
 FAULT = ENUMS["fault"]
 STATUS = ENUMS["status"]
 CAP = ENUMS["capability"]
+TELEMETRY = M["TELEMETRY"]
+UNDERRUN_BIT = 1 << STATUS["setpoint_underrun"]
+WATCHDOG_BIT = 1 << STATUS["watchdog_tripped"]
+ESTOP_BIT = 1 << STATUS["estop"]
+SATURATED_BITS = [1 << v for k, v in sorted(STATUS.items()) if k.startswith("saturated_j")]
+LIMIT_BITS = [1 << v for k, v in sorted(STATUS.items()) if k.startswith("limit_j")]
 
 SETPOINT_DEPTH = 8  #: setpoints buffered ahead of their tick
 DEFAULT_WATCHDOG_MS = 250
@@ -259,7 +265,7 @@ class FirmwareEmulator:
         """One sample period of the plant, then the firmware's tick (module docstring)."""
         sample = self.plant.step([mv * 1e-3 for mv in self.applied_mv])
         self.tick = (self.tick + 1) & TICK_MASK
-        self.counts = [int(c) for c in sample.counts]
+        self.counts = counts = [int(c) for c in sample.counts]
         status = 0
         moving = self.mode != MODE["idle"]
         silent_ms = ((self.tick - self.last_host_tick) & TICK_MASK) * self.tick_us // 1000
@@ -274,12 +280,13 @@ class FirmwareEmulator:
                 _, self.setpoint, self.setpoint_hold = self.buffer.popleft()
                 due = True
             if not due and not self.setpoint_hold:
-                status |= 1 << STATUS["setpoint_underrun"]
+                status |= UNDERRUN_BIT
             out = []
+            setpoint = self.setpoint
             for j, pid in enumerate(self.pids):
-                out.append(pid.step(self.setpoint[j], self.counts[j]))
+                out.append(pid.step(setpoint[j], counts[j]))
                 if pid.saturated:
-                    status |= 1 << STATUS[f"saturated_j{j}"]
+                    status |= SATURATED_BITS[j]
         elif self.mode == MODE["voltage"]:
             out = [
                 max(-s, min(s, v)) for v, s in zip(self.voltage_cmd_mv, self.supply_mv, strict=True)
@@ -289,24 +296,22 @@ class FirmwareEmulator:
         for j, lim in enumerate(self.limits):
             if lim is None:
                 continue
-            if (self.counts[j] >= lim[1] and out[j] > 0) or (
-                self.counts[j] <= lim[0] and out[j] < 0
-            ):
+            if (counts[j] >= lim[1] and out[j] > 0) or (counts[j] <= lim[0] and out[j] < 0):
                 out[j] = 0
-                status |= 1 << STATUS[f"limit_j{j}"]
+                status |= LIMIT_BITS[j]
         self.applied_mv = [self._pwm(j, v) for j, v in enumerate(out)]
         if self.watchdog_tripped:
-            status |= 1 << STATUS["watchdog_tripped"]
+            status |= WATCHDOG_BIT
         if self.estop:
-            status |= 1 << STATUS["estop"]
+            status |= ESTOP_BIT
         self.status = status
         if self.streaming and self.tick % self.decimation == 0:
             self._send(
-                M["TELEMETRY"](
+                TELEMETRY(
                     self.tick,
                     status,
                     self.mode,
-                    tuple(self.counts),
+                    tuple(counts),
                     tuple(_clamp16(mv_from_volts(v)) for v in sample.voltage),
                     tuple(_clamp16(mv_from_volts(i)) for i in sample.current),
                     tuple(self.setpoint),

@@ -9,12 +9,13 @@ conditioning stage bridges by resampling.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from guardid.conditioning import choose_cutoff, condition
 from guardid.conditioning.bandwidth import clip_cutoff
+from guardid.conditioning.parallel import parallel_filter
 from guardid.dynamics import build_model
 from guardid.errors import GuardidError
 from guardid.estimators import (
@@ -120,6 +121,7 @@ def identification_rows(
     effort_is_torque=False,
     *,
     highest_harmonic_hz: float | None = None,
+    parallel_filter_hz: float | None = None,
     **kwargs,
 ):
     """Conditioned signals and the stacked base regressor of the usable rows.
@@ -137,6 +139,13 @@ def identification_rows(
       :data:`STICTION_GUARD_PERIODS` / cut-off of a flagged sample is dropped;
     * decimation to a Nyquist frequency of about the cut-off, so that the rows' filtered
       noise is roughly independent and the LS standard deviations are honest.
+
+    ``parallel_filter_hz`` [Hz] (default None = off): Gautier's parallel filter
+    (:mod:`guardid.conditioning.parallel`): the regressor is computed on every conditioned
+    sample (no decimation there), then its columns and y are low-passed with one filter at
+    this cut-off and decimated to a Nyquist frequency of about 2x it; the usable-row mask
+    is decimated with them and rows within 1 / ``parallel_filter_hz`` of either end are
+    dropped. Use a cut-off near the excitation band's upper edge, below ``cutoff_hz``.
     """
     model = build_model(description)
     gain = None if in_current_units else _drive_gain(description)
@@ -149,6 +158,8 @@ def identification_rows(
         cutoff_hz = clip_cutoff(HARMONIC_CUTOFF_FACTOR * float(highest_harmonic_hz), fs)
     if cutoff_hz is None:
         cutoff_hz = choose_cutoff(t, np.asarray(q_rad, dtype=float).reshape(len(t), -1))
+    if parallel_filter_hz:
+        kwargs["decimate"] = 1  # decimation happens after the parallel filter
     auto_guard = "stiction_guard_s" not in kwargs and not effort_is_torque
     auto_dec = "decimate" not in kwargs and not effort_is_torque
     if not effort_is_torque:  # guardid logs (period-mean motor current); foreign: as before
@@ -166,6 +177,8 @@ def identification_rows(
         cond = condition(t, q_rad, current_a, cutoff_hz=cutoff_hz, gain=gain, **kwargs)
         cond.notes.append("too few rows with the stiction guard: guard disabled")
     free = _free_columns(model, description)
+    if parallel_filter_hz:
+        return _parallel_rows(model, description, cond, free, in_current_units, parallel_filter_hz)
     m = cond.mask
     if m.sum() <= len(free):
         raise GuardidError(
@@ -180,6 +193,80 @@ def identification_rows(
     if fixed and not in_current_units:
         y = y - A_all[:, :, fixed] @ values[fixed]
     return cond, A_all[:, :, free], y
+
+
+def _parallel_rows(model, description, cond, free, in_current_units, hz):
+    """:func:`identification_rows` with the parallel filter at ``hz`` [Hz] (see there)."""
+    fs = 1.0 / float(np.median(np.diff(cond.t)))
+    if not 0.0 < hz < 0.5 * fs:
+        raise GuardidError(f"--parallel-filter: {hz:g} Hz must be in (0, {0.5 * fs:g}) Hz")
+    A_all = model.base_regressor(cond.q, cond.qd, cond.qdd)
+    y = cond.tau - model.known_torque(cond.q, cond.qd, cond.qdd)
+    fixed = [i for i in range(A_all.shape[2]) if i not in free]
+    if fixed and not in_current_units:
+        y = y - A_all[:, :, fixed] @ model.base.values(model.params)[fixed]
+    sig = (cond.q, cond.qd, cond.qdd, cond.stiction)
+    k, (A_all, y, tau, mask, q, qd, qdd, stuck) = parallel_filter(
+        fs, hz, A_all, y, cond.tau, cond.mask, *sig
+    )
+    t = cond.t[::k]
+    mask = mask & (t >= t[0] + 1.0 / hz) & (t <= t[-1] - 1.0 / hz)
+    note = f"parallel filter {hz:.3g} Hz on the regressor and the torque, then decimation by {k}"
+    cond = replace(
+        cond, t=t, q=q, qd=qd, qdd=qdd, tau=tau, mask=mask, stiction=stuck,
+        decimation=cond.decimation * k, notes=[*cond.notes, note],
+    )  # fmt: skip
+    if mask.sum() <= len(free):
+        raise GuardidError(
+            f"only {int(mask.sum())} usable rows after the parallel filter (need more than "
+            f"{len(free)}): the run is too short or the joints hardly move"
+        )
+    return cond, A_all[mask][:, :, free], y[mask]
+
+
+def stacked_rows(
+    runs,
+    description,
+    cutoff_hz=None,
+    in_current_units=False,
+    effort_is_torque=False,
+    *,
+    highest_harmonic_hz: float | None = None,
+    parallel_filter_hz: float | None = None,
+):
+    """Rows of several runs, each conditioned on its own, stacked.
+
+    ``runs``: a sequence of (t [s] (N,), q [rad] (N, n), effort (N, n)). The cut-off
+    [Hz] (``cutoff_hz``, else :func:`identification_rows`' rule on the first run) is the
+    same for every run. Returns (conditioned, A (M, n, b'), y (M, n)) where
+    ``conditioned`` joins the runs' conditioned signals, times shifted so that they keep
+    increasing (run k starts one sample after run k-1 ends).
+    """
+    conds, As, ys = [], [], []
+    for t, q, effort in runs:
+        cond, A, y = identification_rows(
+            t, q, effort, description, cutoff_hz, in_current_units, effort_is_torque,
+            highest_harmonic_hz=highest_harmonic_hz, parallel_filter_hz=parallel_filter_hz,
+        )  # fmt: skip
+        cutoff_hz = cond.cutoff_hz
+        conds.append(cond)
+        As.append(A)
+        ys.append(y)
+    if len(conds) == 1:
+        return conds[0], As[0], ys[0]
+    ts, start = [], 0.0
+    for c in conds:
+        ts.append(c.t - c.t[0] + start)
+        start = ts[-1][-1] + float(np.median(np.diff(c.t)))
+    notes = list(conds[0].notes) + [f"{len(conds)} runs conditioned separately, rows stacked"]
+    joined = replace(
+        conds[0],
+        t=np.concatenate(ts),
+        **{f: np.concatenate([getattr(c, f) for c in conds])
+           for f in ("q", "qd", "qdd", "tau", "mask", "stiction")},
+        notes=notes,
+    )  # fmt: skip
+    return joined, np.concatenate(As), np.concatenate(ys)
 
 
 def _drive_gain(description) -> np.ndarray:
@@ -210,8 +297,9 @@ def identify(
     hopfield_passes: int = 1,
     hopfield_nominal=None,
     hopfield_settle: bool = True,
+    parallel_filter_hz: float | None = None,
 ) -> Identification:
-    """Identify the base parameters of ``description`` from one run.
+    """Identify the base parameters of ``description`` from one run (or several).
 
     t_s (N,) [s]; q_rad (N, n); current_a (N, n) motor current [A] (period means, guard
     firmware) or joint torque with drive-less joints; voltage_v and ticks (optional) add the
@@ -226,15 +314,26 @@ def identify(
     the online estimate keeps fluctuating around the optimum by the noise, so the reported
     offline value is the network's equilibrium on the log; the online pass's end value is
     kept in ``results['hopfield'].settings['online_end']`` and its history for the plots.
+
+    Several runs: t_s, q_rad and current_a are lists (one array per run), conditioned
+    separately and their rows stacked (:func:`stacked_rows`); voltage_v and ticks are then
+    lists too and the motors are estimated from the first run. ``parallel_filter_hz`` [Hz]:
+    Gautier's parallel filter on the regressor and the torque (:func:`identification_rows`).
     """
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
         raise GuardidError(f"--method: unknown {', '.join(unknown)} (known: {', '.join(METHODS)})")
     model = build_model(description)
-    cond, A, y = identification_rows(
-        t_s, q_rad, current_a, description, cutoff_hz, in_current_units, effort_is_torque,
-        highest_harmonic_hz=highest_harmonic_hz,
+    several = isinstance(t_s, (list, tuple))
+    runs = list(zip(t_s, q_rad, current_a, strict=True)) if several else [(t_s, q_rad, current_a)]
+    cond, A, y = stacked_rows(
+        runs, description, cutoff_hz, in_current_units, effort_is_torque,
+        highest_harmonic_hz=highest_harmonic_hz, parallel_filter_hz=parallel_filter_hz,
     )  # fmt: skip
+    if several:  # motors (R, Ke) from the first run
+        t_s, q_rad, current_a = runs[0]
+        voltage_v = voltage_v[0] if voltage_v else None
+        ticks = ticks[0] if ticks else None
     free = _free_columns(model, description)
     names = tuple(model.base.names[i] for i in free)
     nominal = model.base.values(model.params)[free]

@@ -74,8 +74,10 @@ class Session:
         try:
             waiting = self.port.in_waiting
             data = self.port.read(waiting if waiting > 0 else 1)
-            if data and not waiting and self.port.in_waiting:
-                data += self.port.read(self.port.in_waiting)  # the rest of what arrived
+            if data and not waiting:
+                rest = self.port.in_waiting  # the rest of what arrived with that byte
+                if rest:
+                    data += self.port.read(rest)
         except (serial.SerialException, OSError) as exc:
             raise LinkError(f"port {self.name}: read failed (disconnected?): {exc}") from None
         if not data:

@@ -56,9 +56,11 @@ T = 15 ms (about 1.5 s of motion: about half the rows are near stiction and skip
 DEFAULT_RHO = 0.1
 """RLS regularised forgetting: the information forgotten per row, (1 - lambda) P^-1, is
 replaced by (1 - lambda) R0, R0 = diag(1 / (rho w_i)^2), w_i = max(|nominal_i|, 10 % of
-the median nonzero |nominal|) (the offline Hopfield prior); this bounds P by
-(rho w)^2 / (1 - lambda) in every direction, so directions the recent rows do not excite
-cannot wind up [-]."""
+the median nonzero |nominal|) (the offline Hopfield prior). The information then obeys
+R_k = lambda R_k-1 + A^T A + (1 - lambda) R0 >= (1 - lambda^k) R0, so P = R^-1 stays below
+diag((rho w)^2) once the start-up is forgotten: directions the recent rows do not excite
+cannot wind up (plain forgetting lets them grow as lambda^-k and a payload step then threw
+the poorly excited parameters far off) [-]."""
 DEFAULT_BETA = 10.0
 """Hopfield gain beta [N^2 m^2 s] (smaller = faster; below about 1 the per-sample step is
 already the projection that zeroes the sample's error, and beta no longer speeds it up)."""

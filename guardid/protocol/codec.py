@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import struct
 import zlib
+from itertools import chain
 from collections import namedtuple
 from typing import NamedTuple
 
@@ -84,27 +85,31 @@ def n_joints_of(msg: tuple) -> int:
     return n
 
 
-#: msg_id -> per field: True when it is a per-joint array (precomputed for the hot path)
-_PER_JOINT_FLAGS = {m.msg_id: tuple(f.per_joint for f in m.fields) for m in SPEC.messages}
+#: msg_id -> number of fixed fields; the per-joint arrays follow them (checked here, since
+#: the wire layout and the hot path below rely on it)
+_N_FIXED: dict[int, int] = {}
+for _m in SPEC.messages:
+    _flags = [f.per_joint for f in _m.fields]
+    if _flags != sorted(_flags):
+        raise ValueError(f"{_m.name}: per-joint fields must follow the fixed fields")
+    _N_FIXED[_m.msg_id] = _flags.count(False)
 
 
 def encode_raw(msg: tuple, seq: int, version: int = PROTOCOL_VERSION) -> bytes:
     """Header + payload + CRC of ``msg`` (before COBS), ``seq`` taken modulo 2**16."""
     spec = msg.SPEC
-    flags = _PER_JOINT_FLAGS[spec.msg_id]
-    vals: list[int] = []
-    n = 0
-    if True in flags:
-        lens = {len(v) for v, per in zip(msg, flags, strict=True) if per}
-        n = lens.pop()
-        if lens or not 1 <= n <= MAX_JOINTS:
-            raise ValueError(
-                f"{spec.name}: per-joint arrays must share one length in 1..{MAX_JOINTS}"
-            )
-        for v, per in zip(msg, flags, strict=True):
-            vals.extend(v) if per else vals.append(v)
+    k = _N_FIXED[spec.msg_id]
+    if k == len(msg):
+        n, vals = 0, msg
     else:
-        vals = list(msg)
+        arrays = msg[k:]
+        n = len(arrays[0])
+        for arr in arrays:
+            if len(arr) != n or not 1 <= n <= MAX_JOINTS:
+                raise ValueError(
+                    f"{spec.name}: per-joint arrays must share one length in 1..{MAX_JOINTS}"
+                )
+        vals = msg[:k] + tuple(chain.from_iterable(arrays))
     try:
         body = _BODY[(spec.msg_id, n)].pack(version, spec.msg_id, seq & 0xFFFF, *vals)
     except struct.error as exc:

@@ -13,6 +13,7 @@ from guardid.robot.description import (
     Limits,
     LinkDescription,
     ParameterRange,
+    Rotor,
     Sensor,
 )
 from guardid.robot.loader import DEFAULT_VOLTAGE_SENSOR, load_robot, parse_robot, shipped_path
@@ -30,6 +31,7 @@ __all__ = [
     "Limits",
     "LinkDescription",
     "ParameterRange",
+    "Rotor",
     "Sensor",
     "DEFAULT_VOLTAGE_SENSOR",
     "load_robot",

@@ -53,6 +53,28 @@ class Drive:
 
 
 @dataclass(frozen=True)
+class Rotor:
+    """Mechanical-only motor rotor behind a gearbox (YAML ``rotor``), for a joint whose
+    effort is a joint torque (``drive: null``): no electrical model.
+
+    gear_ratio N [-] > 0, inertia J [kg m^2] (motor side); reflected inertia N^2 J.
+    ``coupling`` 0: the rotor spins at N q_j' (adds N^2 J to M[j, j] only); +1 / -1: the
+    rotor sits on the previous link and spins at that link's angular velocity about the
+    joint axis +- N q_j', i.e. at v . q' with v_k = +-1 for the earlier revolute joints (all
+    axes parallel) and v_j = +-N: it adds J v v^T to M (the rotor-coupling terms).
+    """
+
+    gear_ratio: float
+    inertia: float  # kg m^2 (motor side)
+    coupling: int = 0
+
+    @property
+    def reflected_inertia(self) -> float:
+        """Rotor inertia seen at the joint, N^2 J [kg m^2]."""
+        return self.gear_ratio**2 * self.inertia
+
+
+@dataclass(frozen=True)
 class Friction:
     """Joint friction: tau_f = viscous*qd + coulomb*sign(qd) + offset [N m or N].
 
@@ -106,6 +128,14 @@ class JointDescription:
     current_sensor: Sensor | None = None
     voltage_sensor: Sensor | None = None
     pid: PID | None = None
+    rotor: Rotor | None = None
+
+    @property
+    def reflected_inertia(self) -> float | None:
+        """N^2 J_rotor [kg m^2] of the drive or the mechanical-only rotor; None if neither."""
+        if self.drive is not None:
+            return self.drive.reflected_inertia
+        return None if self.rotor is None else self.rotor.reflected_inertia
 
 
 @dataclass(frozen=True)

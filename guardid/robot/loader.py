@@ -22,6 +22,7 @@ from guardid.robot.description import (
     Limits,
     LinkDescription,
     ParameterRange,
+    Rotor,
     Sensor,
 )
 from guardid.robot.validate import Checker
@@ -85,6 +86,7 @@ def _parse_chain(ck: Checker, data: dict, source: str) -> ChainDescription:
         ck.fail("joints", "at least one joint is required")
     links_raw = ck.sequence(data["links"], "links", len(joints_raw))
     joints = tuple(_joint(ck, j, f"joints[{i}]", i) for i, j in enumerate(joints_raw))
+    _check_rotor_coupling(ck, joints)
     links = tuple(_link(ck, v, f"links[{i}]", i) for i, v in enumerate(links_raw))
     return ChainDescription(
         name=name, joints=joints, links=links, gravity=gravity, sample_period=period, source=source
@@ -92,7 +94,7 @@ def _parse_chain(ck: Checker, data: dict, source: str) -> ChainDescription:
 
 
 def _joint(ck: Checker, raw, path: str, index: int) -> JointDescription:
-    opt = ("name", "encoder", "current_sensor", "voltage_sensor", "pid")
+    opt = ("name", "encoder", "current_sensor", "voltage_sensor", "pid", "rotor")
     ck.mapping(raw, path, ("type", "dh", "limits", "drive", "friction"), opt)
     jtype = ck.string(raw["type"], f"{path}.type", ("revolute", "prismatic"))
     name = ck.string(raw.get("name", f"joint{index + 1}"), f"{path}.name")
@@ -130,6 +132,7 @@ def _joint(ck: Checker, raw, path: str, index: int) -> JointDescription:
         pp = f"{path}.pid"
         p = ck.mapping(raw["pid"], pp, ("kp", "ki", "kd"))
         pid = PID(*(ck.number(p[k], f"{pp}.{k}", nonneg=True) for k in ("kp", "ki", "kd")))
+    rotor = _rotor(ck, raw.get("rotor"), f"{path}.rotor", drive is not None)
     return JointDescription(
         name,
         jtype,
@@ -141,7 +144,44 @@ def _joint(ck: Checker, raw, path: str, index: int) -> JointDescription:
         current,
         voltage,
         pid,
+        rotor,
     )
+
+
+def _rotor(ck: Checker, raw, path: str, has_drive: bool) -> Rotor | None:
+    """Mechanical-only rotor {gear_ratio, inertia [kg m^2], coupling -1|0|1} or None."""
+    if raw is None:
+        return None
+    if has_drive:
+        ck.fail(path, "the joint has a drive: give the rotor inertia as drive.rotor_inertia")
+    ck.mapping(raw, path, ("gear_ratio", "inertia"), ("coupling",))
+    coupling = raw.get("coupling", 0)
+    if isinstance(coupling, bool) or coupling not in (-1, 0, 1):
+        ck.fail(f"{path}.coupling", f"expected -1, 0 or 1, got {coupling!r}")
+    return Rotor(
+        ck.number(raw["gear_ratio"], f"{path}.gear_ratio", positive=True),
+        ck.number(raw["inertia"], f"{path}.inertia", nonneg=True),
+        int(coupling),
+    )
+
+
+def _check_rotor_coupling(ck: Checker, joints) -> None:
+    """A coupled rotor needs a previous link and every earlier axis parallel to its own."""
+    for j, joint in enumerate(joints):
+        if joint.rotor is None or joint.rotor.coupling == 0:
+            continue
+        path = f"joints[{j}].rotor.coupling"
+        if j == 0:
+            ck.fail(path, "the first joint's motor sits on the base: no previous link to couple")
+        if joint.type != "revolute":
+            ck.fail(path, "rotor coupling is modelled for revolute joints only")
+        bad = [i + 1 for i in range(j) if abs(np.sin(joints[i].dh.alpha)) > 1e-9]
+        if bad:
+            ck.fail(
+                path,
+                "needs every earlier joint axis parallel to this one (dh.alpha 0 or pi), "
+                f"not so after joint(s) {', '.join(map(str, bad))}",
+            )
 
 
 def _limits(ck: Checker, raw, path: str) -> Limits:
