@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import struct
 import zlib
-from itertools import chain
 from collections import namedtuple
+from itertools import chain
 from typing import NamedTuple
 
 from cobs import cobs
