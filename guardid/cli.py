@@ -7,21 +7,15 @@ non-zero exit code.
 
 from __future__ import annotations
 
-import sys
-
 import click
 
 from guardid import __version__
-from guardid.errors import GuardidError
+from guardid.errors import report_errors
 
 
 class _Group(click.Group):
     def invoke(self, ctx: click.Context):
-        try:
-            return super().invoke(ctx)
-        except GuardidError as exc:
-            click.echo(f"guardid: error: {exc}", err=True)
-            sys.exit(exc.exit_code)
+        return report_errors(super().invoke, ctx)
 
 
 @click.group(cls=_Group)

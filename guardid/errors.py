@@ -1,5 +1,7 @@
 """User-facing errors: one line, names the file, field or port, exits non-zero."""
 
+import sys
+
 
 class GuardidError(Exception):
     """An error caused by user input or the environment, shown as a single line.
@@ -23,3 +25,13 @@ class LinkError(GuardidError):
     """The serial link failed (missing port, disconnect, protocol mismatch)."""
 
     exit_code = 3
+
+
+def report_errors(call, *args, **kwargs):
+    """Run ``call``; a :class:`GuardidError` becomes ``guardid: error: ...`` on stderr and
+    ``sys.exit(exit_code)`` (no traceback). Used by the CLI's group and standalone commands."""
+    try:
+        return call(*args, **kwargs)
+    except GuardidError as exc:
+        sys.stderr.write(f"guardid: error: {exc}\n")
+        sys.exit(exc.exit_code)

@@ -1,6 +1,28 @@
-"""Test helpers: see the bytes on both sides of a faulty sim:// link."""
+"""Test helpers for runs through sim://: a simple trajectory, and the bytes on both sides
+of a faulty link."""
 
 from __future__ import annotations
+
+import numpy as np
+
+
+class Sines:
+    """A minimal trajectory: q_j(t) = c_j + a_j sin(2 pi f_j t), ramped in over 2 s."""
+
+    period = 10.0
+
+    def positions(self, t):
+        t = np.asarray(t, dtype=float)
+        ramp = np.minimum(t / 2.0, 1.0)
+        return np.column_stack(
+            [
+                ramp * 0.4 * np.sin(2 * np.pi * 0.1 * t),
+                0.15 + ramp * 0.1 * np.sin(2 * np.pi * 0.2 * t),
+            ]
+        )
+
+    def to_dict(self):
+        return {"kind": "test-sines"}
 
 
 class Recorder:

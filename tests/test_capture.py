@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 import pytest
-from linktools import Recorder, Tee, expected_damage
+from linktools import Recorder, Sines, Tee, expected_damage
 
 from guardid.capture import capture
 from guardid.errors import LinkError
@@ -25,25 +25,6 @@ from guardid.robot import load_robot
 
 GUARD = load_robot("guard")
 PER_RAD = np.array([48 * 500, 48 * 1000]) / (2 * math.pi)
-
-
-class Sines:
-    """A minimal trajectory: q_j(t) = c_j + a_j sin(2 pi f_j t) (1 - cos ramp)."""
-
-    period = 10.0
-
-    def positions(self, t):
-        t = np.asarray(t, dtype=float)
-        ramp = np.minimum(t / 2.0, 1.0)
-        return np.column_stack(
-            [
-                ramp * 0.4 * np.sin(2 * np.pi * 0.1 * t),
-                0.15 + ramp * 0.1 * np.sin(2 * np.pi * 0.2 * t),
-            ]
-        )
-
-    def to_dict(self):
-        return {"kind": "test-sines"}
 
 
 class TruthRecorder:

@@ -20,6 +20,7 @@ import pytest
 import scipy.io
 import yaml
 from click.testing import CliRunner
+from linktools import Sines
 
 from guardid.cli import main
 from guardid.dynamics import build_model
@@ -90,25 +91,6 @@ def write_csv(path, names, cols, delimiter=","):
 # --- native guardid log vs the same data as a foreign CSV / .mat ---------------------------
 
 
-class _Sines:
-    """Trajectory for the simulated capture (as in test_capture.py)."""
-
-    period = 10.0
-
-    def positions(self, t):
-        t = np.asarray(t, dtype=float)
-        ramp = np.minimum(t / 2.0, 1.0)
-        return np.column_stack(
-            [
-                ramp * 0.4 * np.sin(2 * np.pi * 0.1 * t),
-                0.15 + ramp * 0.1 * np.sin(2 * np.pi * 0.2 * t),
-            ]
-        )
-
-    def to_dict(self):
-        return {"kind": "test-sines"}
-
-
 @pytest.fixture(scope="module")
 def guard_log(tmp_path_factory):
     from guardid.capture import capture
@@ -118,7 +100,7 @@ def guard_log(tmp_path_factory):
     port = open_port("sim://guard?seed=7")
     session = Session(port)
     session.handshake()
-    capture(session, load_robot("guard"), _Sines(), 20.0, path, {"robot": "guard"})
+    capture(session, load_robot("guard"), Sines(), 20.0, path, {"robot": "guard"})
     port.close()
     return path
 

@@ -10,7 +10,7 @@ import sys
 
 import click
 
-from guardid.errors import GuardidError
+from guardid.errors import report_errors
 from guardid.fakeport.engine import LinkEngine
 from guardid.fakeport.factory import DEVICE_ENV, make_device
 from guardid.fakeport.options import parse_options
@@ -41,11 +41,7 @@ class _Command(click.Command):
     """Report GuardidError as one line also when run without the guardid group."""
 
     def invoke(self, ctx: click.Context):
-        try:
-            return super().invoke(ctx)
-        except GuardidError as exc:
-            click.echo(f"guardid: error: {exc}", err=True)
-            sys.exit(exc.exit_code)
+        return report_errors(super().invoke, ctx)
 
 
 @click.command("fake-port", cls=_Command)
