@@ -24,8 +24,8 @@ import tempfile
 from pathlib import Path
 
 from guardid.errors import GuardidError
-from guardid.firmware.emulator import FIRMWARE_ID, FirmwareEmulator
-from guardid.firmware.pid import counts_per_joint_rev, mv_from_volts
+from guardid.firmware.emulator import FIRMWARE_ID, FirmwareEmulator, bind_robot
+from guardid.firmware.pid import mv_from_volts
 
 FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware_proto"
 SOURCES = ("guard_proto.c", "core/guard_fw.c", "core/gf_sil.c")
@@ -144,19 +144,10 @@ class CFirmware:
 
     def __init__(self, description, plant, firmware_id: int = FIRMWARE_ID) -> None:
         joints = description.joints
-        if any(j.drive is None or j.encoder is None for j in joints):
-            raise ValueError(f"{description.name}: every joint needs a drive and an encoder")
+        bind_robot(self, description, plant)
         if not 1 <= len(joints) <= MAX_JOINTS:
             raise ValueError(f"{description.name}: the C core drives 1..{MAX_JOINTS} joints")
         self.lib = load_library()
-        self.description = description
-        self.plant = plant
-        self.n = len(joints)
-        self.tick_us = int(round(description.sample_period * 1e6))
-        self.tick_period_s = self.tick_us * 1e-6
-        self.cpr = [
-            counts_per_joint_rev(j.encoder.counts_per_rev, j.drive.gear_ratio) for j in joints
-        ]
         cfg = [self.n, 0, self.tick_us, firmware_id]
         for joint, cpr in zip(joints, self.cpr, strict=True):
             limits = FirmwareEmulator._count_limits(joint, cpr)

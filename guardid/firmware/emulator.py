@@ -57,6 +57,21 @@ def tick_diff(a: int, b: int) -> int:
     return ((a - b + 0x80000000) & TICK_MASK) - 0x80000000
 
 
+def bind_robot(fw, description, plant) -> None:
+    """Set the robot facts both firmware implementations need on ``fw``: description,
+    plant, joint count ``n``, ``tick_us`` [us], ``tick_period_s`` [s] and ``cpr`` (encoder
+    counts per joint revolution). Every joint needs a drive and an encoder."""
+    joints = description.joints
+    if any(j.drive is None or j.encoder is None for j in joints):
+        raise ValueError(f"{description.name}: every joint needs a drive and an encoder")
+    fw.description = description
+    fw.plant = plant
+    fw.n = len(joints)
+    fw.tick_us = int(round(description.sample_period * 1e6))
+    fw.tick_period_s = fw.tick_us * 1e-6
+    fw.cpr = [counts_per_joint_rev(j.encoder.counts_per_rev, j.drive.gear_ratio) for j in joints]
+
+
 class FirmwareEmulator:
     """The guard firmware's behaviour over a plant with ``step(voltages_V) -> sample``.
 
@@ -68,16 +83,7 @@ class FirmwareEmulator:
 
     def __init__(self, description, plant) -> None:
         joints = description.joints
-        if any(j.drive is None or j.encoder is None for j in joints):
-            raise ValueError(f"{description.name}: every joint needs a drive and an encoder")
-        self.description = description
-        self.plant = plant
-        self.n = len(joints)
-        self.tick_us = int(round(description.sample_period * 1e6))
-        self.tick_period_s = self.tick_us * 1e-6
-        self.cpr = [
-            counts_per_joint_rev(j.encoder.counts_per_rev, j.drive.gear_ratio) for j in joints
-        ]
+        bind_robot(self, description, plant)
         self.supply_mv = [mv_from_volts(j.drive.supply_voltage) for j in joints]
         self.pwm_levels = [(1 << j.drive.pwm_bits) - 1 for j in joints]
         self.limits = [self._count_limits(j, c) for j, c in zip(joints, self.cpr, strict=True)]
