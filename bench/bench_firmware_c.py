@@ -8,15 +8,14 @@ Run: python bench/bench_firmware_c.py [seconds of robot time, default 300]
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 
 import numpy as np
+from bench_hil import sines_setpoints
 
 from guardid.firmware.c_core import build_library
 from guardid.link import Session, open_port
-from guardid.robot import load_robot
 
 
 class Recorder:
@@ -49,15 +48,8 @@ def run(firmware: str, rows: np.ndarray) -> tuple[float, bytes]:
 
 
 def main(robot_seconds: float = 300.0) -> None:
-    guard = load_robot("guard")
-    period = guard.sample_period
-    n = int(robot_seconds / period)
-    t = np.arange(n) * period
-    q = np.column_stack(
-        [0.5 * np.sin(2 * np.pi * 0.1 * t), 0.2 + 0.12 * np.sin(2 * np.pi * 0.13 * t)]
-    )
-    per_rad = np.array([48 * 500, 48 * 1000]) / (2 * math.pi)
-    rows = np.rint(q * per_rad).astype(np.int64)
+    rows = sines_setpoints(robot_seconds)
+    n = len(rows)
     start = time.perf_counter()
     lib = build_library()
     print(f"C core library: {lib} ({time.perf_counter() - start:.2f} s to build or find)")

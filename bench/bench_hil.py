@@ -17,16 +17,21 @@ from guardid.link import Session, open_port
 from guardid.robot import load_robot
 
 
-def main(robot_seconds: float = 600.0) -> None:
+def sines_setpoints(robot_seconds: float) -> np.ndarray:
+    """(n, 2) guard setpoints [counts], one row per 15 ms tick: sums of sines in range."""
     guard = load_robot("guard")
     period = guard.sample_period
-    n = int(robot_seconds / period)
-    t = np.arange(n) * period
+    t = np.arange(int(robot_seconds / period)) * period
     q = np.column_stack(
         [0.5 * np.sin(2 * np.pi * 0.1 * t), 0.2 + 0.12 * np.sin(2 * np.pi * 0.13 * t)]
     )
     per_rad = np.array([48 * 500, 48 * 1000]) / (2 * math.pi)
-    rows = np.rint(q * per_rad).astype(np.int64)
+    return np.rint(q * per_rad).astype(np.int64)
+
+
+def main(robot_seconds: float = 600.0) -> None:
+    rows = sines_setpoints(robot_seconds)
+    n = len(rows)
     port = open_port("sim://guard?seed=1")
     session = Session(port)
     start = time.perf_counter()
