@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as _dt
+import math
 import sys
 
 import click
@@ -91,9 +92,7 @@ def capture(port, baud, robot, trajectory_path, duration, periods, timeout, outp
         serial_port.close()
     if not quiet:
         click.echo("", err=True)
-    errs = ", ".join(
-        f"{e * 180 / 3.141592653589793:.3f} deg" for e in result.rms_tracking_error_rad
-    )
+    errs = ", ".join(f"{math.degrees(e):.3f} deg" for e in result.rms_tracking_error_rad)
     st = result.link
     click.echo(
         f"{result.ended}: {result.rows} rows in {output} ({result.lost_rows} lost), "
@@ -114,7 +113,7 @@ def _check_info(info: dict, description, port: str) -> None:
             f"{description.source or description.name}: describes {description.n_dof} joints, "
             f"the robot on {port} reports {info['joint_count']}"
         )
-    expected = [int(round(c * 2 * 3.141592653589793)) for c in _counts_per_rad(description)]
+    expected = [int(round(c * 2 * math.pi)) for c in _counts_per_rad(description)]
     if list(info["counts_per_rev"]) != expected:
         raise ConfigError(
             f"{description.source or description.name}: encoder counts per joint revolution "
@@ -123,7 +122,7 @@ def _check_info(info: dict, description, port: str) -> None:
 
 
 def _progress(c: dict) -> None:
-    errs = " ".join(f"{e * 57.29577951308232:.2f}" for e in c["tracking_rms_rad"])
+    errs = " ".join(f"{math.degrees(e):.2f}" for e in c["tracking_rms_rad"])
     click.echo(
         f"\rrows {c['rows']:6d}  lost {c['lost']:4d}  CRC {c['crc_errors']:3d}  "
         f"framing {c['framing_errors']:3d}  tracking rms [deg] {errs}   ",
