@@ -124,7 +124,9 @@ def plot(result, path, A=None, y=None, tracker=None) -> None:
     for k, m in enumerate(online, start=1):
         r = result.results[m]
         ax = axes[k, 0]
-        scale = np.where(np.abs(result.nominal) > 0, np.abs(result.nominal), 1.0)
+        # signed, so that 1 means the description's value; parameters whose value is 0
+        # are drawn as they are (in their own unit)
+        scale = np.where(result.nominal != 0, result.nominal, 1.0)
         track = tracker.tracks().get(m) if tracker is not None else None
         if track is not None and set(tracker.names) <= set(result.names):
             idx = [list(result.names).index(n) for n in tracker.names]
@@ -136,7 +138,7 @@ def plot(result, path, A=None, y=None, tracker=None) -> None:
                     ax.axvline(rep.time_s, color="k", ls=":", lw=1.0)
         elif r.history is not None and r.history_t is not None:
             ax.plot(r.history_t, r.history / scale, lw=0.8)
-        ax.set_title(f"{m.upper()} estimates / YAML value (1 = the description's value)")
+        ax.set_title(f"{m.upper()} estimates / YAML value (zero-valued parameters: as estimated)")
         ax.set_xlabel("time [s]")
         ax.set_ylim(-2, 3) if not math.isnan(r.d_tau) else None
     fig.tight_layout()
