@@ -3,7 +3,12 @@ of a faulty link."""
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 import numpy as np
+
+from guardid.fakeport import register_device_factory
+from guardid.firmware import make_sim_device
 
 
 class Sines:
@@ -71,3 +76,20 @@ def expected_damage(clean: bytes, delivered: bytes) -> tuple[int, list[bytes]]:
     errors = sum(1 for s in got if s not in clean_set)
     lost = [s for s in clean_frames if s not in got_set]
     return errors, lost
+
+
+@contextmanager
+def teed_devices():
+    """While active, sim:// ports get the firmware emulator wrapped in a :class:`Tee`;
+    yields the list of those tees (one per port opened)."""
+    tees: list[Tee] = []
+
+    def factory(robot, options):
+        tees.append(Tee(make_sim_device(robot, options)))
+        return tees[-1]
+
+    old = register_device_factory(factory)
+    try:
+        yield tees
+    finally:
+        register_device_factory(old)

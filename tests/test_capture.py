@@ -11,12 +11,12 @@ import time
 
 import numpy as np
 import pytest
-from linktools import Recorder, Sines, Tee, expected_damage
+from linktools import Recorder, Sines, expected_damage, teed_devices
 
 from guardid.capture import capture
 from guardid.errors import LinkError
 from guardid.fakeport import register_device_factory
-from guardid.firmware import FirmwareEmulator, make_sim_device
+from guardid.firmware import FirmwareEmulator
 from guardid.link import Session, open_port
 from guardid.log import read_log
 from guardid.plant import make_plant
@@ -91,22 +91,13 @@ def test_disconnect_mid_capture_keeps_rows_and_says_why(tmp_path):
 
 
 def test_link_faults_show_as_gaps_and_footer_counts(tmp_path):
-    tees = []
-
-    def factory(robot, options):
-        tees.append(Tee(make_sim_device(robot, options)))
-        return tees[-1]
-
-    old = register_device_factory(factory)
-    try:
+    with teed_devices() as tees:
         port = Recorder(open_port("sim://guard?seed=11&drop=3e-4&flip=3e-5&latency_ms=16"))
         session = Session(port, timeout_s=2.0)
         session.handshake()
         log = tmp_path / "run.csv"
         result = capture(session, GUARD, Sines(), 20.0, log, {"robot": "guard"})
         port.close()
-    finally:
-        register_device_factory(old)
     errors, lost = expected_damage(bytes(tees[0].sent), bytes(port.received))
     data = read_log(log)
     link = data.footer["link"]

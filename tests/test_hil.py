@@ -11,10 +11,8 @@ import sys
 import numpy as np
 import pytest
 import serial
-from linktools import Recorder, Tee, expected_damage
+from linktools import Recorder, expected_damage, teed_devices
 
-from guardid.fakeport import register_device_factory
-from guardid.firmware import make_sim_device
 from guardid.link import Session, open_port
 from guardid.plant import Plant
 from guardid.protocol import ENUMS, decode
@@ -166,22 +164,13 @@ def test_pty_gives_the_same_telemetry_as_sim(lockstep_run):
 
 
 def test_injected_link_damage_equals_host_counters():
-    tees = []
-
-    def factory(robot, options):
-        tees.append(Tee(make_sim_device(robot, options)))
-        return tees[-1]
-
-    old = register_device_factory(factory)
-    try:
+    with teed_devices() as tees:
         port = Recorder(open_port("sim://guard?seed=5&drop=2e-4&flip=2e-5&latency_ms=16"))
         try:
             rows, session = run(port, 1500)
             damage = port.fault_stats.down
         finally:
             port.close()
-    finally:
-        register_device_factory(old)
     clean = bytes(tees[0].sent)
     delivered = bytes(port.received)
     assert damage.bytes_dropped + damage.bytes_flipped > 5, "the seed injected too little"
