@@ -70,7 +70,7 @@ def runs(tmp_path_factory):
     calm = tmp / "calm.csv"
     result = capture(
         session, GUARD, trajectory, 60.0, calm, {"robot": "guard"},
-        on_row=lambda t, q, v, i: tracker.update(t, q, i),
+        on_row=lambda t, q, v, i: tracker.update(t, q, i, v),
     )  # fmt: skip
     port.close()
     assert result.rows == 4000
@@ -81,6 +81,13 @@ def runs(tmp_path_factory):
         "calm": calm,
         "calm_tracker": tracker,
     }
+
+
+def settle_times(track, names, truth, t_change) -> tuple[float, float]:
+    """Settle times [s] of MX2R and MY2 of one track after ``t_change``."""
+    return tuple(
+        settle_time(track.t, track.theta[:, names.index(x)], truth[x], t_change) for x in GRAVITY
+    )
 
 
 def change_time_in_log(path) -> float:
@@ -103,13 +110,14 @@ def test_live_capture_tracks_the_payload_and_reports_it(runs):
     assert set(tracks) == {"rls", "hopfield"} and "MX2R" in names
     t_change = change_time_in_log(runs["pay"])
     new = base_truth(PAYLOAD)
-    for m, tr in tracks.items():
-        k = names.index("MX2R")
-        assert settle_time(tr.t, tr.theta[:, k], new["MX2R"], t_change) < 5.0, m
-        # MY2 (0.07 -> 0.09 kg m) is resolved by these 60 s only slowly: see the report
-        k = names.index("MY2")
-        late = tr.theta[tr.t > tr.t[-1] - 1.0, k].mean()
-        assert late > 0.078, m
+    settled = {m: settle_times(tr, names, new, t_change) for m, tr in tracks.items()}
+    print(f"settle times after the payload [s]: {settled}")
+    for m, (mx, my) in settled.items():
+        assert mx < 1.0, m
+        # MY2 (0.07 -> 0.09 kg m) needs the tilt to sweep its travel: least squares on the
+        # rows after the change alone leaves 5 % about 5.5 s after it on this trajectory;
+        # the Hopfield network's lag smooths that excursion (README, online identification)
+        assert my < (5.0 if m == "hopfield" else 6.0), m
     # each report is printed live (stderr) and again in the summary (stdout)
     lines = {x.lstrip("\r") for x in out.splitlines() if "payload changed at" in x}
     assert len(lines) == 2 and {"(RLS)" in x or "(HOPFIELD)" in x for x in lines} == {True}
@@ -138,19 +146,20 @@ def test_offline_identify_tracks_and_reports_the_same(runs, tmp_path):
     new = base_truth(PAYLOAD)
     for m, tr in tracker.tracks().items():
         assert np.allclose(tr.theta, live[m].theta, rtol=1e-4, atol=1e-5)
-        for name in GRAVITY[:1]:
-            k = tracker.names.index(name)
-            assert settle_time(tr.t, tr.theta[:, k], new[name], t_change) < 5.0
+        mx, my = settle_times(tr, tracker.names, new, t_change)
+        assert mx < 1.0 and my < (5.0 if m == "hopfield" else 6.0), m
 
 
 def test_no_report_without_a_change(runs):
     tracker = runs["calm_tracker"]
     assert tracker.reports == [] and tracker.rows == 4000
+    assert all(d.alarms == [] for d in tracker.detectors.values())
     old = base_truth()
     for m, tr in tracker.tracks().items():
-        k = tracker.names.index("MX2R")
         steady = tr.t > 10.0
-        assert np.all(np.abs(tr.theta[steady, k] / old["MX2R"] - 1) < 0.05), m
+        for name in GRAVITY:
+            k = tracker.names.index(name)
+            assert np.all(np.abs(tr.theta[steady, k] / old[name] - 1) < 0.05), (m, name)
     res = CliRunner().invoke(cli, ["identify", str(runs["calm"]), "--method", "rls,hopfield"])
     assert res.exit_code == 0 and "no parameter change detected" in res.output
     assert "payload changed" not in res.output
@@ -167,7 +176,7 @@ def test_realtime_capture_keeps_up_with_both_estimators(runs, tmp_path):
     log = tmp_path / "rt.csv"
     result = capture(
         session, GUARD, load_trajectory(runs["traj"]), 20.0, log, {"robot": "guard"},
-        on_row=lambda t, q, v, i: tracker.update(t, q, i),
+        on_row=lambda t, q, v, i: tracker.update(t, q, i, v),
     )  # fmt: skip
     port.close()
     assert result.ended == "complete" and result.rows == result.ticks_expected == 1333
@@ -175,3 +184,43 @@ def test_realtime_capture_keeps_up_with_both_estimators(runs, tmp_path):
     assert not np.any(status & (1 << STATUS["setpoint_underrun"]))
     assert tracker.rows == result.rows and tracker.used > 0.3 * tracker.rows
     print(f"online step: {tracker.us_per_row:.0f} us per row")
+
+
+def test_motor_equation_current_fits_r_and_ke_from_a_wrong_yaml(runs):
+    """The motor-equation current does not trust the YAML: told R = 10 ohm and Ke = 0.025
+    V s/rad, the online fit on the calm capture (true 8 ohm, 0.02) recovers 1/R and Ke N / R,
+    and its currents match the sensor's within the sensor noise on average."""
+    import dataclasses
+
+    from guardid.online.motor import MotorCurrent
+
+    wrong = dataclasses.replace(
+        GUARD,
+        joints=tuple(
+            dataclasses.replace(j, drive=dataclasses.replace(j.drive, resistance=10.0, ke=0.025))
+            for j in GUARD.joints
+        ),
+    )
+    run = load_run(runs["calm"])
+    motor = MotorCurrent(wrong)
+    rows = zip(run.voltage, run.q, run.current, strict=True)
+    est = np.array([motor.update(v, q, i) for v, q, i in rows])
+    gear = np.array([j.drive.gear_ratio for j in GUARD.joints])
+    assert np.allclose(motor.a_, 1 / 8.0, rtol=1e-2)
+    assert np.allclose(motor.c_, 0.02 * gear / 8.0, rtol=1e-2)
+    late = slice(len(est) // 2, None)
+    assert np.all(np.abs((est[late] - run.current[late]).mean(axis=0)) < 1e-3)
+
+
+def test_current_sensor_effort_tracks_the_payload_too(runs):
+    """``effort='current'`` (the sensor alone, as for a log without voltages): the change is
+    reported within 1 s of the truth and MX2R settles; MY2 is noisier (not asserted)."""
+    run = load_run(runs["pay"])
+    tracker = track_log(run, GUARD, ("rls", "hopfield"), log_path=runs["pay"],
+                        echo=lambda s: None, effort="current")  # fmt: skip
+    t_change = change_time_in_log(runs["pay"])
+    assert len(tracker.reports) == 2
+    assert all(abs(r.time_s - t_change) <= 1.0 for r in tracker.reports)
+    new = base_truth(PAYLOAD)
+    for m, tr in tracker.tracks().items():
+        assert settle_times(tr, tracker.names, new, t_change)[0] < 1.0, m

@@ -1,65 +1,211 @@
-"""The change detector on synthetic estimate streams (no robot needed)."""
+"""The residual-CUSUM change detector on synthetic streams (no robot, no estimator needed).
+
+A stream is a row every 15 ms of two joint equations: a-priori residuals (Gaussian, a
+different scale per joint, plus an optional bias step) and the estimate of
+(MX2R, MY2, Fv2) (old values plus small noise, optionally moving to new values). The
+detector is driven as :class:`guardid.online.OnlineIdentifier` drives it: ``update`` on
+every row, then ``settled`` while it is settling after an alarm.
+"""
 
 from __future__ import annotations
+
+import dataclasses
+import re
 
 import numpy as np
 import pytest
 
-from guardid.online import ChangeDetector, DetectorSettings, detect_changes
+from guardid.online import ChangeDetector, DetectorSettings
+from guardid.online.detector import Alarm
 
-NAMES = ("ZZ1R", "MX2R", "MY2")
 DT = 0.015
+NAMES = ("MX2R", "MY2", "Fv2")
+UNITS = ("kg m", "kg m", "N m s/rad")
+SCALES = np.array([0.5, 2.0])  # residual sigma of the two joints [N m]
+OLD = np.array([0.77, 0.07, 0.5])
+NEW = np.array([0.99, 0.09, 0.6])
+SETTINGS = DetectorSettings(holdoff_s=10.0, reference_s=5.0, settle_s=5.0, new_s=1.0)
+BOTH = np.array([True, True])
 
 
-def stream(step_at=None, seconds=60.0, seed=0, noise=0.005):
-    """Estimates of (1.0, 0.77, 0.07) with 1 s-correlated noise and an optional step."""
+def index(t_s: float) -> int:
+    """The row index of time ``t_s`` [s]."""
+    return round(t_s / DT)
+
+
+def make_stream(seed=0, seconds=60.0, bias=(), steps=()):
+    """Rows ``t`` (N,), residuals (N, 2), estimates (N, 3).
+
+    ``bias``: (t_from, t_to, joint, m) adds m sigma to that joint's residual in [t_from, t_to);
+    ``steps``: (t_at, before, after) moves the estimate from ``before`` to ``after`` at t_at
+    (exponential transition, 0.3 s time constant)."""
     rng = np.random.default_rng(seed)
-    t = np.arange(0.0, seconds, DT)
-    base = np.array([1.0, 0.77, 0.07])
-    w = rng.normal(size=(len(t), 3))
-    k = np.exp(-DT / 1.0)
-    x = np.zeros_like(w)
-    for i in range(1, len(t)):
-        x[i] = k * x[i - 1] + np.sqrt(1 - k * k) * w[i]
-    theta = base * (1 + noise * x)
-    if step_at is not None:
-        after = t >= step_at
-        theta[after, 1] += 0.22 * (1 - np.exp(-(t[after] - step_at) / 0.5))
-        theta[after, 2] += 0.02 * (1 - np.exp(-(t[after] - step_at) / 0.5))
-    return t, theta
+    t = np.arange(index(seconds)) * DT
+    residual = rng.normal(size=(len(t), 2)) * SCALES
+    for t_from, t_to, joint, m in bias:
+        residual[index(t_from) : index(t_to), joint] += m * SCALES[joint]
+    theta = np.tile(OLD, (len(t), 1))
+    for t_at, before, after in steps:
+        k = index(t_at)
+        ramp = 1.0 - np.exp(-(t[k:] - t[k]) / 0.3)
+        theta[k:] += ramp[:, None] * (np.asarray(after) - np.asarray(before))
+    theta *= 1.0 + 0.002 * rng.normal(size=theta.shape)
+    return t, residual, theta
+
+
+def drive(det, t, residual, theta):
+    """Feed every row; returns the alarms and the reports in order."""
+    alarms, reports = [], []
+    for ti, ei, thi in zip(t, residual, theta, strict=True):
+        alarm = det.update(ti, BOTH, ei, thi)
+        if alarm is not None:
+            alarms.append(alarm)
+        if det.state == "settling":
+            rep = det.settled(ti, thi)
+            if rep is not None:
+                reports.append(rep)
+    return alarms, reports
+
+
+def detector(**kw):
+    settings = dataclasses.replace(SETTINGS, **kw)
+    return ChangeDetector(NAMES, n_joints=2, method="rls", settings=settings, units=UNITS)
 
 
 @pytest.mark.parametrize("seed", range(5))
-def test_quiet_stream_gives_no_report(seed):
-    t, theta = stream(seed=seed)
-    assert detect_changes(t, theta, NAMES) == []
+def test_quiet_stream_gives_no_alarm_and_no_report(seed):
+    det = detector()
+    alarms, reports = drive(det, *make_stream(seed=seed))
+    assert alarms == [] and reports == []
+    assert det.state == "armed"
+    # each joint's own residual scale was learnt in the reference window
+    assert det.sigma == pytest.approx(SCALES, rel=0.2)
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_step_is_reported_with_time_and_new_values(seed):
-    t, theta = stream(step_at=31.2, seed=seed)
-    reports = detect_changes(t, theta, NAMES, "rls", units=("kg m^2", "kg m", "kg m"))
+def test_step_gives_an_alarm_and_a_report_with_time_and_values(seed):
+    # the residual is biased until the estimator has caught up (about 1 s)
+    t, residual, theta = make_stream(
+        seed=seed, bias=[(30.0, 31.0, 0, 20.0)], steps=[(30.0, OLD, NEW)]
+    )
+    det = detector()
+    alarms, reports = drive(det, t, residual, theta)
+
+    assert len(alarms) == 1
+    alarm = alarms[0]
+    assert isinstance(alarm, Alarm)
+    assert abs(alarm.time_s - 30.0) <= 2 * DT + 1e-9
+    assert 30.0 <= alarm.alarm_s <= 30.0 + 5 * DT
+
     assert len(reports) == 1
     rep = reports[0]
-    assert rep.names == ("MX2R", "MY2")  # the first-moment parameters are watched
-    assert abs(rep.time_s - 31.2) < 0.3
-    assert rep.after == pytest.approx([0.99, 0.09], rel=0.03)
-    assert rep.before == pytest.approx([0.77, 0.07], rel=0.03)
-    assert str(rep).startswith("payload changed at 31.") and "MX2R 0.7" in str(rep)
-    assert "-> 0.98" in str(rep) or "-> 0.99" in str(rep)
+    assert rep.method == "rls"
+    assert rep.time_s == alarm.time_s and rep.alarm_s == alarm.alarm_s
+    assert rep.report_s >= rep.time_s + SETTINGS.settle_s
+    assert rep.report_s < rep.time_s + SETTINGS.settle_s + 2 * DT
+    assert rep.names == ("MX2R", "MY2")  # the first moments, not Fv2
+    assert rep.units == ("kg m", "kg m")
+    assert rep.before == pytest.approx(OLD[:2], rel=0.01)
+    assert rep.after == pytest.approx(NEW[:2], rel=0.01)
+    # "after" is the mean over the last new_s before the report, not one noisy row
+    last = (t > rep.report_s - SETTINGS.new_s - 1e-9) & (t <= rep.report_s + 1e-9)
+    assert rep.after == pytest.approx(theta[last, :2].mean(axis=0), rel=1e-9)
+    assert rep.sigma == pytest.approx(0.002 * OLD[:2], rel=0.2)
+
+    text = str(rep)
+    assert text.startswith("payload changed at 30.0 s (RLS):")
+    values = r"MX2R 0\.7[67]\d* -> 0\.9[89]\d* kg m, MY2 0\.0[67]\d* -> 0\.0[89]\d* kg m"
+    assert re.fullmatch(r"payload changed at 30\.0 s \(RLS\): " + values, text), text
+    assert det.reports == [rep]
 
 
-def test_nothing_is_watched_during_the_hold_off():
-    t, theta = stream(step_at=5.0)
-    det = ChangeDetector(NAMES, "x", DetectorSettings(holdoff_s=10.0))
-    for ti, th in zip(t, theta, strict=True):
-        det.update(ti, th)
-    assert det.reports == []  # the step is inside hold-off + reference: it is the reference
+def test_alarm_without_moving_estimates_gives_no_report_and_relearns():
+    t, residual, theta = make_stream(bias=[(30.0, 31.0, 1, 20.0)])
+    det = detector()
+    end = index(30.0 + SETTINGS.settle_s + 0.5)
+    alarms, reports = drive(det, t[:end], residual[:end], theta[:end])
+    assert len(alarms) == 1 and abs(alarms[0].time_s - 30.0) <= 2 * DT + 1e-9
+    assert reports == [] and det.reports == []
+    assert det.state == "reference"
+    # and it arms again on the fresh reference, with no further alarm on the quiet rest
+    alarms, reports = drive(det, t[end:], residual[end:], theta[end:])
+    assert alarms == [] and reports == []
+    assert det.state == "armed"
 
 
-def test_two_changes_give_two_reports():
-    t, theta = stream(step_at=25.0, seconds=70.0)
-    later = t >= 50.0
-    theta[later, 1] -= 0.22
-    reports = detect_changes(t, theta, NAMES)
-    assert [round(r.time_s) for r in reports] == [25, 50]
+def test_nothing_is_watched_during_the_holdoff():
+    t, residual, theta = make_stream(bias=[(2.0, 9.5, 0, 1000.0)], steps=[(2.0, OLD, NEW)])
+    det = detector()
+    alarms, reports = drive(det, t, residual, theta)
+    assert alarms == [] and reports == []
+    assert det.state == "armed"
+    assert det.sigma == pytest.approx(SCALES, rel=0.2)  # the reference is after the hold-off
+
+
+def test_two_changes_give_two_alarms_and_two_reports():
+    mid = (OLD + NEW) / 2
+    t, residual, theta = make_stream(
+        bias=[(30.0, 31.0, 0, 20.0), (50.0, 51.0, 1, -20.0)],
+        steps=[(30.0, OLD, mid), (50.0, mid, NEW)],
+    )
+    det = detector()
+    alarms, reports = drive(det, t, residual, theta)
+    assert len(alarms) == 2 and len(reports) == 2
+    for alarm, rep, t_change in zip(alarms, reports, (30.0, 50.0), strict=True):
+        assert abs(alarm.time_s - t_change) <= 2 * DT + 1e-9
+        assert rep.time_s == alarm.time_s
+    assert reports[0].before == pytest.approx(OLD[:2], rel=0.01)
+    assert reports[0].after == pytest.approx(mid[:2], rel=0.01)
+    assert reports[1].before == pytest.approx(mid[:2], rel=0.01)
+    assert reports[1].after == pytest.approx(NEW[:2], rel=0.01)
+
+
+def test_row_with_one_joint_leaves_the_other_cusum_unchanged():
+    s = 0.5
+    det = detector(holdoff_s=1.0, reference_s=1.0)
+    t = 0.0
+    # deterministic residuals: +-s on both joints, so sigma is exactly s
+    while det.state != "armed":
+        sign = 1.0 if index(t) % 2 else -1.0
+        assert det.update(t, BOTH, [sign * s, sign * s], OLD) is None
+        t += DT
+    assert det.sigma == pytest.approx([s, s], rel=1e-12)
+
+    # joint 0 at 15 sigma: G+ grows by 15 - kappa = 11 per row, 33 after three rows
+    t_zero = t - DT  # the last row with G = 0
+    for _ in range(3):
+        assert det.update(t, BOTH, [15 * s, 0.0], OLD) is None
+        t += DT
+    # rows with only joint 1 (residual of length 1) must leave joint 0's G at 33
+    for _ in range(20):
+        assert det.update(t, [False, True], [0.0], OLD) is None
+        t += DT
+    # one more joint-0 row takes it to 44 > h = 40 (it would be 11 had G decayed)
+    alarm = det.update(t, BOTH, [15 * s, 0.0], OLD)
+    assert alarm is not None
+    assert alarm.time_s == pytest.approx(t_zero) and alarm.alarm_s == pytest.approx(t)
+
+
+def test_watch_with_an_unknown_name_raises():
+    with pytest.raises(ValueError, match="MZ9"):
+        ChangeDetector(NAMES, n_joints=2, settings=DetectorSettings(watch=("MX2R", "MZ9")))
+    det = ChangeDetector(NAMES, n_joints=2, settings=DetectorSettings(watch=("Fv2",)))
+    assert det.names == ("Fv2",)
+
+
+def test_a_joint_absent_from_the_reference_window_is_not_watched():
+    """No rows of joint 1 while the reference is learnt: it has no residual scale, so its
+    ordinary residuals afterwards must not fire (joint 0 stays watched)."""
+    rng = np.random.default_rng(7)
+    det = ChangeDetector(NAMES, n_joints=2, method="rls",
+                         settings=DetectorSettings(holdoff_s=1.0, reference_s=1.0))  # fmt: skip
+    theta = np.array([0.77, 0.07, 0.5])
+    alarms = []
+    for k in range(int(10.0 / 0.015)):
+        t = k * 0.015
+        rows = np.array([True, t > 2.5])
+        alarm = det.update(t, rows, rng.normal(size=int(rows.sum())), theta)
+        if alarm is not None:
+            alarms.append(alarm)
+    assert alarms == [] and det.state == "armed"
+    assert np.isfinite(det.sigma[0]) and np.isinf(det.sigma[1])

@@ -41,7 +41,18 @@ def _load_trajectory(path: str):
     help="Comma-separated online estimators run on the live telemetry (rls, hopfield); "
     "estimates go to OUTPUT's .online.csv, parameter changes are reported.",
 )
-def capture(port, baud, robot, trajectory_path, duration, periods, timeout, output, quiet, online):
+@click.option(
+    "--online-effort",
+    type=click.Choice(["voltage", "current"]),
+    default="voltage",
+    show_default=True,
+    help="Motor current for --online: from the motor equation (voltage, encoder, R and Ke "
+    "fitted to the current sensor; less noisy) or from the current sensor alone.",
+)
+def capture(
+    port, baud, robot, trajectory_path, duration, periods, timeout, output, quiet, online,
+    online_effort,
+):  # fmt: skip
     """Run the trajectory on the robot in closed loop and record telemetry to OUTPUT.
 
     The default port is the built-in simulated robot. Ctrl-C puts the robot idle and
@@ -59,7 +70,7 @@ def capture(port, baud, robot, trajectory_path, duration, periods, timeout, outp
         duration = (periods or 1) * trajectory.period
     if duration <= 0:
         raise ConfigError(f"--duration: must be > 0 s, got {duration:g}")
-    tracker = _tracker(online, description, trajectory)
+    tracker = _tracker(online, description, trajectory, online_effort)
     port_url = port or f"sim://{robot}"
     serial_port = open_port(port_url, baud)
     session = Session(serial_port, timeout_s=timeout)
@@ -131,7 +142,7 @@ def _progress(c: dict) -> None:
     )
 
 
-def _tracker(online, description, trajectory):
+def _tracker(online, description, trajectory, effort):
     """The :class:`guardid.online.OnlineIdentifier` asked for by --online, or None."""
     if not online:
         return None
@@ -141,7 +152,7 @@ def _tracker(online, description, trajectory):
     methods = tuple(m.strip() for m in online.split(",") if m.strip())
     to_dict = getattr(trajectory, "to_dict", None)
     harmonic = trajectory_highest_harmonic(to_dict() if to_dict else None)
-    return OnlineIdentifier(description, methods, highest_harmonic_hz=harmonic)
+    return OnlineIdentifier(description, methods, highest_harmonic_hz=harmonic, effort=effort)
 
 
 def _progress_with(tracker):
@@ -161,7 +172,7 @@ def _progress_with(tracker):
 
 def _on_row(tracker, quiet: bool):
     def feed(t_s, q, volts, amps) -> None:
-        for report in tracker.update(t_s, q, amps):
+        for report in tracker.update(t_s, q, amps, volts):
             click.echo(("" if quiet else "\r") + str(report), err=True)
 
     return feed

@@ -48,8 +48,9 @@ def dc_group_delay(sos: np.ndarray) -> float:
 class StreamOutput:
     """One chunk of causal output, (M, n) each, at instants t_k - delay_s.
 
-    q [rad], qd [rad/s], qdd [rad/s^2], tau [N m, or effort unit if no gain], stiction (M,)
-    bool (True = some joint below the threshold; all False if no threshold was given).
+    q [rad], qd [rad/s], qdd [rad/s^2], tau [N m, or effort unit if no gain], slow (M, n)
+    bool (True = that joint below its threshold), stiction (M,) bool (True = some joint
+    below its threshold); all False if no threshold was given.
     """
 
     q: np.ndarray
@@ -57,6 +58,7 @@ class StreamOutput:
     qdd: np.ndarray
     tau: np.ndarray
     stiction: np.ndarray
+    slow: np.ndarray
 
 
 class CausalConditioner:
@@ -133,7 +135,7 @@ class CausalConditioner:
         if self.gain is not None:
             tau = tau * self.gain
         if self.threshold is None:
-            stiction = np.zeros(len(qd), dtype=bool)
+            slow = np.zeros(qd.shape, dtype=bool)
         else:
-            stiction = np.any(np.abs(qd) < self.threshold, axis=1)
-        return StreamOutput(y1[:, :n].copy(), qd, qdd, tau, stiction)
+            slow = np.abs(qd) < self.threshold
+        return StreamOutput(y1[:, :n].copy(), qd, qdd, tau, slow.any(axis=1), slow)

@@ -27,6 +27,21 @@ error is O(K dt / settling time); ``fit_block=1`` is exact (same steps as ``upda
 With K > 1, ``history_`` is taken at the end of each block that reaches a multiple of
 ``history_every``; ``history_samples_`` holds the exact sample counts.
 
+Windowed weights (``lam`` given; an extension for tracking, not in seed 000): the network's
+weights and biases are the information of an exponentially forgetting window instead of
+the current sample's,
+    W_k = lam W_{k-1} + A_k^T A_k + (1 - lam) F,
+    b_k = lam b_{k-1} + A_k^T y_k + (1 - lam) F theta,
+W_0 = S^-2, b_0 = W_0 theta_n (a prior of one half-width per parameter), F = diag(``info_floor``)
+(regularised forgetting: the information never falls below F, so unexcited directions cannot
+wind up). Each sample takes one linearly implicit step of ds/dt = (1/beta)(1 - s^2) * S (b - W
+theta) with the p x p system (D^-1 + h/beta S W S) ds = h/beta S (b - W theta). The energy is
+then the window's squared prediction error, whose minimum is the forgetting least-squares
+estimate: the network follows it (inside the box) with a lag set by beta, and with a memory
+of about 1 / (1 - lam) samples, so a parameter the current sample hardly excites is still
+resolved. :meth:`discard` resets the information of chosen parameters (after a detected
+change). Costs one p x p solve per sample.
+
 Online fast path (n_out = 2, float64 arrays): the same step with the work arrays kept
 between samples: Dm = diag(S^2 D) (p, p) is updated through a view of its diagonal, so
 M = A S D S A^T and A theta come from two small matrix products (A Dm, then A [A Dm ; theta]^T);
@@ -95,9 +110,13 @@ class Hopfield(Estimator):
         dt: float = 0.015,
         fit_block: int = 16,
         history_every: int = 10,
+        lam: float | None = None,
+        info_floor=None,
     ):
         if beta <= 0 or dt <= 0:
             raise ValueError("beta and dt must be > 0")
+        if lam is not None and not 0.0 < lam <= 1.0:
+            raise ValueError("lam must be in (0, 1]")
         if bounds is not None:
             lo, hi = (np.asarray(b, dtype=float) for b in bounds)
             center, scale = 0.5 * (lo + hi), 0.5 * (hi - lo)
@@ -117,6 +136,8 @@ class Hopfield(Estimator):
         self.beta, self.dt = float(beta), float(dt)
         self.fit_block = int(fit_block)
         self.history_every = int(history_every)
+        self.lam = None if lam is None else float(lam)
+        self.info_floor = None if info_floor is None else np.asarray(info_floor, dtype=float)
         self.reset()
 
     def __getstate__(self):
@@ -131,6 +152,59 @@ class Hopfield(Estimator):
         self.s_ = self._s0.copy()
         self.theta_ = self.center_ + self.scale_ * self.s_
         self.n_samples_ = 0
+        if self.lam is not None:
+            self.W_ = np.diag(1.0 / self.scale_**2)
+            self.b_ = self.W_ @ self.theta_
+        return self
+
+    def discard(self, idx, theta=None):
+        """Windowed weights only: forget what the data said about parameters ``idx``.
+
+        Their information goes back to the prior (1 / half-width^2, no cross terms); the
+        other parameters keep their marginal information (the Schur complement). ``theta``
+        (p,) inside the box, if given, becomes the state; the biases are set so that the
+        weights' minimum is the current estimate. Returns ``self``.
+        """
+        if self.lam is None:
+            raise ValueError("discard needs windowed weights (lam)")
+        idx = np.asarray(idx, dtype=int)
+        keep = np.setdiff1d(np.arange(self.s_.size), idx)
+        W = self.W_
+        Wk = W[np.ix_(keep, keep)]
+        if idx.size and keep.size:
+            Wik = W[np.ix_(idx, keep)]
+            Wk = Wk - Wik.T @ np.linalg.solve(W[np.ix_(idx, idx)], Wik)
+        out = np.zeros_like(W)
+        out[np.ix_(keep, keep)] = Wk
+        out[idx, idx] = 1.0 / self.scale_[idx] ** 2
+        if theta is not None:
+            s = (np.asarray(theta, dtype=float) - self.center_) / self.scale_
+            self.s_ = np.clip(s, -_SMAX, _SMAX)
+            self.theta_ = self.center_ + self.scale_ * self.s_
+        self.W_ = out
+        self.b_ = out @ self.theta_
+        return self
+
+    def _update_windowed(self, A_k, y_k):
+        """One sample with the windowed weights (module doc)."""
+        lam = self.lam
+        W, b = self.W_, self.b_
+        W *= lam
+        W += A_k.T @ A_k
+        b *= lam
+        b += A_k.T @ y_k
+        if self.info_floor is not None and lam < 1.0:
+            f = (1.0 - lam) * self.info_floor
+            W[np.diag_indices_from(W)] += f
+            b += f * self.theta_
+        S, s = self.scale_, self.s_
+        g = self.dt / self.beta
+        M = g * (S[:, None] * W * S[None, :])
+        M[np.diag_indices_from(M)] += 1.0 / (1.0 - s * s)
+        ds = np.linalg.solve(M, g * S * (b - W @ self.theta_))
+        self.s_ = _boundary_step(s, ds)
+        self.theta_ = self.center_ + S * self.s_
+        self.n_samples_ += 1
         return self
 
     # -- online --------------------------------------------------------------------------
@@ -143,6 +217,8 @@ class Hopfield(Estimator):
         arrays after every sample; replacing ``s_``, ``center_`` or ``scale_`` by new arrays
         is picked up at the next call; treat them as read-only otherwise.
         """
+        if self.lam is not None:
+            return self._update_windowed(*as_sample(A_k, y_k))
         ws = self._ws
         if (
             ws is None
@@ -244,7 +320,8 @@ class Hopfield(Estimator):
         self.reset()
         N = A3.shape[0]
         k = max(self.history_every, 1)
-        if self.fit_block <= 1 and A3.shape[1] == 2:  # the online fast path, sample by sample
+        if self.lam is not None or (self.fit_block <= 1 and A3.shape[1] == 2):
+            # windowed weights, or the online fast path: sample by sample
             hist = []
             for i in range(N):
                 self.update(A3[i], y2[i])

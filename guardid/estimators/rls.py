@@ -69,6 +69,25 @@ class RLS(Estimator):
         self.theta_ = np.zeros(p) if self.theta0 is None else np.array(self.theta0, dtype=float)
         self.n_samples_ = 0
 
+    def discard(self, idx, prior_var, theta=None):
+        """Forget what the data said about parameters ``idx``; keep the rest's information.
+
+        Covariance reset (e.g. after a detected payload change): the covariance of ``idx``
+        becomes diag(``prior_var``) (len(idx),) [(unit of theta / unit of y)^2], their
+        cross-covariances with the other parameters 0; the others keep their marginal
+        covariance. ``theta`` (p,), if given, replaces the estimate (e.g. its value before
+        the change). Returns ``self``.
+        """
+        idx = np.asarray(idx, dtype=int)
+        P = np.array(self.P_, dtype=float)
+        P[idx, :] = 0.0
+        P[:, idx] = 0.0
+        P[idx, idx] = np.broadcast_to(np.asarray(prior_var, dtype=float), idx.shape)
+        self.P_ = P
+        if theta is not None:
+            self.theta_ = np.array(theta, dtype=float)
+        return self
+
     # -- online --------------------------------------------------------------------------
     def update(self, A_k, y_k):
         """One sample: A_k (n_out, p) or (p,), y_k (n_out,) or scalar (units of ``fit``).

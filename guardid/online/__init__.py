@@ -1,7 +1,7 @@
 """On-line identification during a capture (and its replay from a log): estimators fed row by
 row through causal conditioning, and a change report when the parameters move."""
 
-from guardid.online.detector import ChangeDetector, ChangeReport, DetectorSettings, detect_changes
+from guardid.online.detector import ChangeDetector, ChangeReport, DetectorSettings
 from guardid.online.tracker import (
     DEFAULT_BETA,
     DEFAULT_LAM,
@@ -21,7 +21,6 @@ __all__ = [
     "DetectorSettings",
     "OnlineIdentifier",
     "Track",
-    "detect_changes",
     "online_path",
     "read_tracks_csv",
 ]

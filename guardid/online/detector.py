@@ -1,33 +1,32 @@
-"""Change detection on a stream of online estimates: "payload changed at 31.2 s: ...".
+"""Change detection for online identification: "payload changed at 31.2 s: ...".
 
-:class:`ChangeDetector` watches the estimates theta(t) of one online estimator, by default
-the first-moment (gravity) base parameters (names MX*, MY*, MZ*): they are the best
-identified ones and any payload with a mass changes them. Per watched parameter i:
+:class:`ChangeDetector` watches one online estimator through its a-priori prediction
+residuals e_j = y_j - A_j theta (per joint equation j, before the row updates theta): a
+payload changes the torque the model predicts at once, long before an estimator with a
+long memory has moved. Per estimator:
 
-1. **Hold-off** (``holdoff_s`` after the first estimate): the estimator is still converging
-   from its prior; nothing is watched.
-2. **Reference** (the next ``reference_s``, one excitation period by default): the
-   reference value r_i = mean of theta_i and the estimate's own spread
-   sigma_i = std of theta_i over the window, floored at ``rel_floor`` x |r_i| and
-   ``abs_floor`` (a steady estimator would otherwise give a spread near zero).
-3. **Armed**: a two-sided CUSUM of the standardised deviation z_i = (theta_i - r_i) / sigma_i,
-   integrated over time (dt between estimates, capped at ``max_step_s``):
+1. **Hold-off** (``holdoff_s`` after the first row): the estimator is still converging from
+   its prior; nothing is watched.
+2. **Reference** (the next ``reference_s``): each joint's residual scale sigma_j = RMS of
+   e_j over the window, and the watched estimates' (by default the first moments MX*, MY*,
+   MZ*: any payload with a mass changes them) mean and spread.
+3. **Armed**: a two-sided CUSUM per joint of z_j = e_j / sigma_j over the rows,
 
-       G+_i <- max(0, G+_i + (z_i - kappa) dt),   G-_i <- max(0, G-_i + (-z_i - kappa) dt)
+       G+_j <- max(0, G+_j + z_j - kappa),   G-_j <- max(0, G-_j - z_j - kappa)
 
-   [G in sigma seconds]. An alarm is raised when some G exceeds ``h``. The estimate's
-   fluctuations within +-kappa sigma (what the reference window showed, with margin) never
-   accumulate; a step of Delta = m sigma reaches the alarm after about h / (m - kappa) s.
-   The change time is the CUSUM change-point estimate refined: the last instant before the
-   alarm at which that G was zero is where the estimate left the +-kappa sigma band; the
-   change time is the last instant before that at which the estimate was still within
-   ``onset_z`` sigma of the reference on that side (searched over ``lookback_s``).
-4. **Settling**: the new values are the mean of theta over the last ``new_s`` before
-   ``settle_s`` after the change time; the report is issued then, and the detector goes back
-   to step 2 with a fresh reference (so a later change is reported too).
+   [sigma x rows]; residuals within +-``kappa`` sigma never accumulate, a bias of m sigma
+   reaches the alarm ``h`` after about h / (m - kappa) rows. At the alarm the change time
+   is the CUSUM change-point estimate: the last row before the alarm at which that G was
+   zero. The caller (:class:`guardid.online.OnlineIdentifier`) then discards the
+   estimator's information on the changed parameters and replays the rows since that time.
+4. **Settling**: the new values are the mean of the watched estimates over the last
+   ``new_s`` before ``settle_s`` after the change time. They are reported when some watched
+   estimate moved beyond its uncertainty: by more than ``n_sigma`` x its spread in the
+   reference window and more than ``rel_floor`` x its old value. Either way the detector
+   then learns a fresh reference (step 2), so a later change is caught too.
 
-Times are those of the estimates, i.e. the instants of the motion the estimates describe
-(the online tracker removes its conditioning and guard delays), not the arrival times.
+Times are those of the rows, i.e. the instants of the motion they describe (the tracker
+removes its conditioning and guard delays), not the arrival times.
 """
 
 from __future__ import annotations
@@ -37,34 +36,34 @@ from dataclasses import dataclass
 
 import numpy as np
 
+MIN_REFERENCE_ROWS = 10
+"""A joint equation needs this many rows in the reference window to be watched [-]."""
+
 
 @dataclass(frozen=True)
 class DetectorSettings:
     """Tuning of :class:`ChangeDetector` (see the module docstring); times in s.
 
     ``watch``: names of the watched parameters (None = the first-moment ones, all if none).
-    ``kappa`` [sigma], ``h`` [sigma s], ``rel_floor`` [-], ``abs_floor`` [unit of theta].
+    ``kappa`` [sigma], ``h`` [sigma x rows], ``n_sigma`` [-], ``rel_floor`` [-].
     """
 
     watch: tuple[str, ...] | None = None
     holdoff_s: float = 10.0
-    reference_s: float = 10.0
-    kappa: float = 3.0
-    h: float = 1.0
-    rel_floor: float = 0.03
-    abs_floor: float = 1e-6
+    reference_s: float = 5.0
+    kappa: float = 4.0
+    h: float = 40.0
     settle_s: float = 5.0
     new_s: float = 1.0
-    max_step_s: float = 0.1
-    onset_z: float = 1.0
-    lookback_s: float = 5.0
+    n_sigma: float = 3.0
+    rel_floor: float = 0.03
 
 
 @dataclass(frozen=True)
 class ChangeReport:
     """A detected change: ``time_s`` [s] change time, ``alarm_s`` when the CUSUM fired,
     ``report_s`` when the new values were taken; ``before``/``after`` of ``names`` (SI units
-    ``units``); ``sigma`` the reference spread."""
+    ``units``); ``sigma`` the watched estimates' spread in the reference window."""
 
     method: str
     time_s: float
@@ -84,15 +83,23 @@ class ChangeReport:
         return f"payload changed at {self.time_s:.1f} s ({self.method.upper()}): {vals}"
 
 
-class ChangeDetector:
-    """CUSUM change detector on one estimator's estimates (module docstring).
+@dataclass(frozen=True)
+class Alarm:
+    """The CUSUM fired at ``alarm_s`` [s]; the change happened at ``time_s`` [s]."""
 
-    ``names`` (b,) names of the estimate's components; ``method`` a label for the reports;
-    ``units`` (b,) their SI units (for the report text).
+    time_s: float
+    alarm_s: float
+
+
+class ChangeDetector:
+    """Residual CUSUM change detector of one estimator (module docstring).
+
+    ``names`` (b,) names of the estimate's components; ``n_joints`` joint equations per row;
+    ``method`` a label for the reports; ``units`` (b,) their SI units (for the report text).
+    Feed every row with :meth:`update` (before the estimator uses it).
     """
 
-    def __init__(self, names, method: str = "", settings: DetectorSettings | None = None,
-                 units=None):  # fmt: skip
+    def __init__(self, names, n_joints: int, method: str = "", settings=None, units=None):
         self.settings = s = settings or DetectorSettings()
         names = tuple(names)
         watch = s.watch or tuple(x for x in names if x.startswith(("MX", "MY", "MZ"))) or names
@@ -104,111 +111,112 @@ class ChangeDetector:
         all_units = tuple(units) if units is not None else ("",) * len(names)
         self.units = tuple(all_units[i] for i in self.index)
         self.method = method
+        self.n = int(n_joints)
         self.reports: list[ChangeReport] = []
+        self.alarms: list[Alarm] = []
         self.state = "holdoff"
         self._t0: float | None = None
-        self._t_prev: float | None = None
         self._phase_start = 0.0
-        self._buf_t: list[float] = []
-        self._buf: list[np.ndarray] = []
-        self.ref = None
-        self.sigma = None
-        self.onset = None
-        self.alarm = None
+        self._recent: deque = deque()  # (t, watched theta) of the last lookback
+        self._start_reference(0.0)
 
-    def update(self, t: float, theta) -> ChangeReport | None:
-        """One estimate at time ``t`` [s]; returns a report when one is completed."""
+    # -- the stream -----------------------------------------------------------------------
+    def update(self, t: float, rows, residual, theta) -> Alarm | None:
+        """One row at time ``t`` [s]: ``rows`` (n,) bool joint equations present,
+        ``residual`` (m,) a-priori residuals of those equations, ``theta`` (b,) the estimate
+        before the row. Returns an :class:`Alarm` when the CUSUM fires."""
         s = self.settings
         x = np.asarray(theta, dtype=float)[self.index]
         if self._t0 is None:
-            self._t0 = self._phase_start = t
-            self._t_prev = t
-        dt = min(max(t - self._t_prev, 0.0), s.max_step_s)
-        self._t_prev = t
+            self._t0 = t
+        self._recent.append((t, x))
+        while self._recent[0][0] < t - max(s.settle_s, s.reference_s) - 1.0:
+            self._recent.popleft()
+        rows = np.asarray(rows, dtype=bool)
         if self.state == "holdoff":
             if t - self._t0 >= s.holdoff_s:
                 self._start_reference(t)
             return None
         if self.state == "reference":
-            self._buf_t.append(t)
-            self._buf.append(x)
+            self._sq[rows] += np.asarray(residual, dtype=float) ** 2
+            self._count[rows] += 1
+            self._ref_x.append(x)
             if t - self._phase_start >= s.reference_s:
-                window = np.asarray(self._buf)
-                self.ref = window.mean(axis=0)
-                spread = window.std(axis=0)
-                self.sigma = np.maximum(spread, np.maximum(s.rel_floor * np.abs(self.ref),
-                                                           s.abs_floor))  # fmt: skip
-                n = len(self.index)
-                self._g = np.zeros((2, n))
-                self._recent = deque()
-                self._zero_t = np.full((2, n), t)
-                self.state = "armed"
-                self._buf_t, self._buf = [], []
+                self._arm(t)
             return None
         if self.state == "armed":
-            z = (x - self.ref) / self.sigma
-            g = self._g
-            g[0] = np.maximum(0.0, g[0] + (z - s.kappa) * dt)
-            g[1] = np.maximum(0.0, g[1] + (-z - s.kappa) * dt)
-            zero = g <= 0.0
-            self._zero_t[zero] = t
-            self._recent.append((t, z))
-            while self._recent[0][0] < t - s.lookback_s:
-                self._recent.popleft()
-            fired = g > s.h
-            if fired.any():
-                self.onset = self._onset(fired)
-                self.alarm = t
-                self.state = "settling"
-                self._buf_t, self._buf = [], []
+            return self._cusum(t, rows, residual)
+        return None
+
+    def settled(self, t: float, theta) -> ChangeReport | None:
+        """After an alarm: the estimate (b,) after the row at ``t`` [s]; returns the report
+        when the new values are taken and the change is significant."""
+        if self.state != "settling":
             return None
-        # settling: keep the last new_s of estimates until settle_s after the change time
-        self._buf_t.append(t)
-        self._buf.append(x)
-        while self._buf_t and self._buf_t[0] < t - s.new_s:
-            self._buf_t.pop(0)
-            self._buf.pop(0)
+        s = self.settings
+        self._new.append((t, np.asarray(theta, dtype=float)[self.index]))
+        while self._new and self._new[0][0] < t - s.new_s:
+            self._new.popleft()
         if t - self.onset < s.settle_s:
+            return None
+        after = np.mean([x for _, x in self._new], axis=0)
+        alarm = self.alarms[-1]
+        self._start_reference(t)
+        moved = np.abs(after - self.before)
+        bar = np.maximum(s.n_sigma * self.spread, s.rel_floor * np.abs(self.before))
+        if not np.any(moved > bar):
             return None
         rep = ChangeReport(
             method=self.method,
-            time_s=self.onset,
-            alarm_s=self.alarm,
+            time_s=alarm.time_s,
+            alarm_s=alarm.alarm_s,
             report_s=t,
             names=self.names,
-            before=self.ref.copy(),
-            after=np.asarray(self._buf).mean(axis=0),
-            sigma=self.sigma.copy(),
+            before=self.before.copy(),
+            after=after,
+            sigma=self.spread.copy(),
             units=self.units,
         )
         self.reports.append(rep)
-        self._start_reference(t)
         return rep
 
-    def _onset(self, fired: np.ndarray) -> float:
-        """Change time [s]: per fired (side, parameter), the last recent instant before G left
-        zero with the standardised deviation on that side at most ``onset_z``; the earliest."""
-        times = []
-        for side, i in zip(*np.nonzero(fired), strict=True):
-            left = self._zero_t[side, i]
-            sign = 1.0 if side == 0 else -1.0
-            best = left
-            for t, z in reversed(self._recent):
-                if t <= left and sign * z[i] <= self.settings.onset_z:
-                    best = t
-                    break
-            times.append(best)
-        return float(min(times))
-
+    # -- phases ---------------------------------------------------------------------------
     def _start_reference(self, t: float) -> None:
-        self.state = "reference"
+        if self._t0 is not None:
+            self.state = "reference"
         self._phase_start = t
-        self._buf_t, self._buf = [], []
+        self._sq = np.zeros(self.n)
+        self._count = np.zeros(self.n)
+        self._ref_x: list[np.ndarray] = []
 
+    def _arm(self, t: float) -> None:
+        rms = np.sqrt(self._sq / np.maximum(self._count, 1))
+        floor = max(float(np.max(rms)) * 1e-3, 1e-12)
+        # a joint with (almost) no rows in the window has no scale: not watched (z = 0)
+        self.sigma = np.where(self._count >= MIN_REFERENCE_ROWS, np.maximum(rms, floor), np.inf)
+        ref = np.asarray(self._ref_x)
+        self.spread = ref.std(axis=0) if len(ref) else np.zeros(len(self.index))
+        self._g = np.zeros((2, self.n))
+        self._zero_t = np.full((2, self.n), t)
+        self.state = "armed"
 
-def detect_changes(t, theta, names, method: str = "", settings=None, units=None):
-    """Run a :class:`ChangeDetector` over a whole track: t (K,) [s], theta (K, b)."""
-    det = ChangeDetector(names, method, settings, units)
-    for ti, th in zip(np.asarray(t, float), np.asarray(theta, float), strict=True):
-        det.update(float(ti), th)
-    return det.reports
+    def _cusum(self, t: float, rows, residual) -> Alarm | None:
+        s = self.settings
+        z = np.zeros(self.n)
+        z[rows] = np.asarray(residual, dtype=float) / self.sigma[rows]
+        g = self._g
+        g[0, rows] = np.maximum(0.0, g[0, rows] + z[rows] - s.kappa)
+        g[1, rows] = np.maximum(0.0, g[1, rows] - z[rows] - s.kappa)
+        self._zero_t[g <= 0.0] = t
+        fired = g > s.h
+        if not fired.any():
+            return None
+        onset = float(np.min(self._zero_t[fired]))
+        alarm = Alarm(onset, t)
+        self.alarms.append(alarm)
+        before = [x for tt, x in self._recent if tt <= onset] or [self._recent[0][1]]
+        self.before = before[-1]
+        self.onset = onset
+        self._new: deque = deque()
+        self.state = "settling"
+        return alarm

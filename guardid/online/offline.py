@@ -33,7 +33,10 @@ def log_highest_harmonic(path) -> float | None:
         return None
 
 
-def track_log(run, description, methods, lam=None, beta=None, log_path=None, echo=click.echo):
+def track_log(
+    run, description, methods, lam=None, beta=None, log_path=None, echo=click.echo,
+    effort="voltage",
+):  # fmt: skip
     """Replay ``run`` (:class:`guardid.identify.runs.Run`) through an :class:`OnlineIdentifier`.
 
     Only the methods of :data:`ONLINE_METHODS` in ``methods`` are tracked. ``lam`` (RLS
@@ -42,7 +45,8 @@ def track_log(run, description, methods, lam=None, beta=None, log_path=None, ech
     identify`` the --lam / --beta values are used only when given on the command line (their
     defaults are the batch pipeline's: no forgetting would not track). Prints the settings
     and the change reports with ``echo``; returns the fed tracker, or None when the run
-    cannot be replayed (foreign log without ticks or with measured torque).
+    cannot be replayed (foreign log without ticks or with measured torque). ``effort``: as
+    :class:`OnlineIdentifier`'s; 'voltage' falls back to 'current' for a log without voltages.
     """
     online = tuple(m for m in methods if m in ONLINE_METHODS)
     if not online:
@@ -55,17 +59,21 @@ def track_log(run, description, methods, lam=None, beta=None, log_path=None, ech
     if beta is None or (click.get_current_context(silent=True) and not _explicit("beta")):
         beta = DEFAULT_BETA
     harmonic = log_highest_harmonic(log_path) if log_path is not None else None
+    if run.voltage is None or np.asarray(run.voltage).shape != np.asarray(run.q).shape:
+        effort = "current"
     tracker = OnlineIdentifier(
-        description, online, lam=float(lam), beta=float(beta), highest_harmonic_hz=harmonic
-    )
+        description, online, lam=float(lam), beta=float(beta), highest_harmonic_hz=harmonic,
+        effort=effort,
+    )  # fmt: skip
     period = float(description.sample_period)
     t = (np.asarray(run.ticks) - run.ticks[0]) * period
-    tracker.feed(t, run.q, run.current)
+    tracker.feed(t, run.q, run.current, run.voltage if effort == "voltage" else None)
     settings = []
     if "rls" in online:
         settings.append(f"RLS lambda {tracker.lam:g} per row")
     if "hopfield" in online:
         settings.append(f"Hopfield beta {tracker.beta:g}")
+    settings.append(f"current from the {'motor equation' if effort == 'voltage' else 'sensor'}")
     echo(
         f"tracking (the log replayed through the online tracker: {', '.join(settings)}, "
         f"cut-off {tracker.cutoff_hz:.3g} Hz, {tracker.used} of {tracker.rows} rows used)"

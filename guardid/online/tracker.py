@@ -1,32 +1,42 @@
 """On-line identification: telemetry rows -> causal conditioning -> base regressor -> estimators.
 
 :class:`OnlineIdentifier` is fed one telemetry row at a time (time [s], joint angles [rad],
-period-mean motor currents [A]) and keeps every requested estimator (``rls``, ``hopfield``)
-up to date:
+period-mean motor currents [A] and voltages [V]) and keeps every requested estimator
+(``rls``, ``hopfield``) up to date:
 
+0. with ``effort='voltage'`` (the default) the current that goes on is the motor equation's,
+   (V - Ke N dq/T) / R with R and Ke fitted online to the measured current
+   (:class:`guardid.online.motor.MotorCurrent`): in the identification band it is several
+   times less noisy than the current sensor; ``effort='current'`` uses the sensor alone;
 1. :class:`guardid.conditioning.CausalConditioner` low-passes positions and currents
    (Butterworth, cut-off ``cutoff_hz``) and differentiates them; its output of row k
    describes the instant t_k - ``delay_s`` (the filter's group delay + one sample);
-2. rows near stiction are held back: a row is used only if no sample within ``guard_s`` of it
-   has a joint slower than ``stiction_threshold`` [rad/s] or an encoder that did not count in
-   the period (the offline pipeline's rule). To know the flags ``guard_s`` after a row, rows
-   wait that long in a short buffer, so estimates lag the motion by ``latency_s`` =
-   ``delay_s`` + ``guard_s``; every estimate is time-stamped with the instant of the motion
-   it describes (not the arrival time);
-3. the base regressor row A (n, b) of :func:`guardid.dynamics.build_model` (identified
-   columns, :func:`guardid.identify.pipeline.identified_names`) and the joint torque
+2. joint equations near stiction are held back: joint j's equation of a row is used only if
+   no sample within ``guard_s`` of it has joint j slower than ``stiction_threshold`` [rad/s]
+   or its encoder not counting in the period (the offline pipeline's rule, per joint: a
+   stuck pan does not spoil the tilt's equation; ``per_joint=False`` drops whole rows). To
+   know the flags ``guard_s`` after a row, rows wait that long in a short buffer, so
+   estimates lag the motion by ``latency_s`` = ``delay_s`` + ``guard_s``; every estimate is
+   time-stamped with the instant of the motion it describes (not the arrival time);
+3. the base regressor rows A (m, b) of :func:`guardid.dynamics.build_model` (identified
+   columns, :func:`guardid.identify.pipeline.identified_names`) and the joint torques
    y = N eta kt i [N m] (minus the described friction offsets a robot declares absent) go to
-   ``estimator.update(A, y)``;
+   ``estimator.update(A, y)``: RLS with forgetting, and the Hopfield network with windowed
+   weights (:class:`guardid.estimators.Hopfield` with ``lam``), both with the memory
+   :data:`DEFAULT_LAM` and regularised forgetting (:data:`DEFAULT_RHO`);
 4. the :class:`guardid.online.detector.ChangeDetector` of each estimator watches its
-   estimates and produces :class:`guardid.online.detector.ChangeReport` objects.
+   a-priori residuals. When it fires, the estimator goes back to its estimate before the
+   change, discards what it knew of the parameters a payload changes (all but friction:
+   :attr:`OnlineIdentifier.changing`), and takes the rows since the change again, except the
+   first :data:`TRANSITION_PERIODS` cut-off periods, in which the causal filter still mixes
+   the torques before and after it. Abrupt changes are thus tracked in a few seconds while
+   the long memory keeps the estimates quiet; 5 s later the detector reports the change
+   if the watched estimates moved beyond their uncertainty.
 
 A gap in the telemetry (a lost row: time step > 1.5 sample periods) restarts the conditioner
 (steady-state initialisation) and skips its warm-up; the estimators keep their state.
 
-Defaults (tuned on 60 s guard captures with a +1 kg payload at 30 s, see
-tests/test_online.py): RLS with regularised forgetting (:data:`DEFAULT_LAM`,
-:data:`DEFAULT_RHO`), Hopfield gain :data:`DEFAULT_BETA` with the ranges of
-:func:`prior_half_widths`.
+Defaults tuned on 60 s guard captures with a +1 kg payload at 30 s (tests/test_online.py).
 """
 
 from __future__ import annotations
@@ -44,31 +54,38 @@ from guardid.dynamics import build_model
 from guardid.errors import ConfigError
 from guardid.estimators import RLS, Hopfield
 from guardid.online.detector import ChangeDetector, ChangeReport, DetectorSettings
+from guardid.online.motor import MotorCurrent
 
 ONLINE_METHODS = ("rls", "hopfield")
 DEFAULT_CUTOFF_HZ = 4.0
 """Cut-off [Hz] when the trajectory's highest harmonic is unknown (8 x 0.5 Hz, as offline)."""
 HARMONIC_CUTOFF_FACTOR = 8.0
 """Cut-off = this x the trajectory's highest harmonic (the offline pipeline's rule) [-]."""
-DEFAULT_LAM = 0.98
-"""RLS forgetting factor per used row: memory T / (1 - lambda) = 0.75 s of used rows at
-T = 15 ms (about 1.5 s of motion: about half the rows are near stiction and skipped) [-]."""
-DEFAULT_RHO = 0.1
-"""RLS regularised forgetting: the information forgotten per row, (1 - lambda) P^-1, is
-replaced by (1 - lambda) R0, R0 = diag(1 / (rho w_i)^2), w_i = max(|nominal_i|, 10 % of
-the median nonzero |nominal|) (the offline Hopfield prior). The information then obeys
-R_k = lambda R_k-1 + A^T A + (1 - lambda) R0 >= (1 - lambda^k) R0, so P = R^-1 stays below
-diag((rho w)^2) once the start-up is forgotten: directions the recent rows do not excite
-cannot wind up (plain forgetting lets them grow as lambda^-k and a payload step then threw
-the poorly excited parameters far off) [-]."""
-DEFAULT_BETA = 10.0
-"""Hopfield gain beta [N^2 m^2 s] (smaller = faster; below about 1 the per-sample step is
-already the projection that zeroes the sample's error, and beta no longer speeds it up)."""
+DEFAULT_LAM = 0.998
+"""Forgetting factor per used row (RLS and the Hopfield network's windowed weights): memory
+T / (1 - lambda) = 7.5 s of used rows at T = 15 ms. Long, for low-noise estimates of the
+weakly excited parameters (MY2); abrupt changes are handled by the change detector's restart
+(module docstring), slow drifts by the forgetting [-]."""
+DEFAULT_RHO = 1.0
+"""Regularised forgetting: the information forgotten per row, (1 - lambda) P^-1, is replaced
+by (1 - lambda) R0, R0 = diag(1 / (rho h_i)^2) with h_i the prior half-widths of
+:func:`prior_half_widths`. The information then obeys R_k >= (1 - lambda^k) R0, so the
+covariance of a direction the rows do not excite stays below the prior box instead of
+growing as lambda^-k (windup) [-]. Larger floors (rho 0.1-0.3) anchor the estimates and
+slowed MY2 after a payload change from 5 s to 10-18 s."""
+DEFAULT_BETA = 3.0
+"""Hopfield gain beta [N^2 m^2 s] with the windowed weights: the network follows the window's
+least-squares minimum with a lag that smooths the estimate (0.1 follows it within a row,
+3 settled MY2 after a payload change 1-2 s sooner than 0.1 on five seeds)."""
 DEFAULT_P0 = 1e2
 """RLS initial covariance (times the identity) [(unit of theta / N m)^2]."""
 STICTION_FRACTION = 0.05
 """Stiction threshold = this x each joint's velocity limit (what ``guardid excite`` calls
 slow), at least 3 encoder counts per sample period [-]."""
+REPLAY_S = 5.0
+"""Rows kept for a replay after a detected change [s of motion]."""
+TRANSITION_PERIODS = 2.0
+"""Cut-off periods after a detected change whose rows are not replayed [-]."""
 GUARD_PERIODS = 0.6
 """Rows within this many cut-off periods of a flagged sample are not used [-]."""
 WARMUP_PERIODS = 2.0
@@ -96,15 +113,23 @@ class OnlineIdentifier:
         Conditioning low-pass cut-off [Hz]; default :data:`HARMONIC_CUTOFF_FACTOR` x
         ``highest_harmonic_hz`` [Hz] if given, else :data:`DEFAULT_CUTOFF_HZ`.
     lam : float
-        RLS forgetting factor per sample period, in (0, 1].
+        Forgetting factor per used row (RLS and the Hopfield weights), in (0, 1].
     beta : float
         Hopfield gain [N^2 m^2 s].
+    p0 : float
+        RLS initial covariance (times the identity).
+    rho : float | None
+        Regularised forgetting floor in prior half-widths (:data:`DEFAULT_RHO`; None = off).
     stiction_threshold : scalar or (n,) [rad/s], optional
         Default :data:`STICTION_FRACTION` x velocity limit (3 counts per period at least).
     detector : DetectorSettings | None | False
         Change-detector settings (None = defaults, False = no detection).
     keep_history : bool
         Keep every estimate (for :meth:`tracks` and :meth:`write_csv`).
+    effort : 'voltage' | 'current'
+        Current from the motor equation (needs the voltages) or from the current sensor.
+    per_joint : bool
+        Drop only the stuck joint's equation near stiction (False: the whole row).
     """
 
     def __init__(
@@ -121,6 +146,8 @@ class OnlineIdentifier:
         stiction_threshold=None,
         detector: DetectorSettings | None | bool = None,
         keep_history: bool = True,
+        effort: str = "voltage",
+        per_joint: bool = True,
     ):
         from guardid.identify.pipeline import identified_names
 
@@ -147,6 +174,11 @@ class OnlineIdentifier:
             stiction_threshold = default_threshold(description)
         self.threshold = np.broadcast_to(np.asarray(stiction_threshold, float), (n,)).copy()
         self.gain = drive_gain(description)
+        if effort not in ("current", "voltage"):
+            raise ConfigError(f"effort: expected 'current' or 'voltage', got {effort!r}")
+        self.effort = effort
+        self.per_joint = bool(per_joint)
+        self.motor = MotorCurrent(description) if effort == "voltage" else None
         self.conditioner = CausalConditioner(
             n, self.dt, cutoff_hz, gain=self.gain, stiction_threshold=self.threshold
         )
@@ -163,22 +195,27 @@ class OnlineIdentifier:
         probe = np.full((1, n), 0.3)
         self._known = bool(np.any(self.model.known_torque(probe, probe, probe)))
         self.half_widths = prior_half_widths(self.nominal, self.names)
-        self.estimators = {m: self._make(m, lam, beta, p0) for m in self.methods}
-        self._r0 = None
-        if rho and lam < 1.0:
-            nz = np.abs(self.nominal[self.nominal != 0])
-            floor = 0.1 * float(np.median(nz)) if nz.size else 1.0
-            w = np.maximum(np.abs(self.nominal), floor)
-            self._r0 = np.diag((1.0 - lam) / (rho * w) ** 2)
+        self.info_floor = 1.0 / (rho * self.half_widths) ** 2 if rho and lam < 1.0 else None
+        self._r0 = None if self.info_floor is None else np.diag((1.0 - lam) * self.info_floor)
         self.lam, self.beta = float(lam), float(beta)
+        self.estimators = {m: self._make(m, p0) for m in self.methods}
+        #: parameters whose information a detected change discards: all but friction
+        self.changing = np.array([i for i, x in enumerate(self.names) if not x.startswith("F")])
         if detector is False:
             self.detectors = {}
         else:
             settings = detector if isinstance(detector, DetectorSettings) else DetectorSettings()
+            units = param_units(self.names)
             self.detectors = {
-                m: ChangeDetector(self.names, m, settings, units=param_units(self.names))
-                for m in self.methods
+                m: ChangeDetector(self.names, n, m, settings, units=units) for m in self.methods
             }
+        self._replay_s = REPLAY_S
+        #: rows this long after a detected change are not replayed: the causal filter
+        #: still mixes the torque before and after the change [s]
+        self.transition_s = TRANSITION_PERIODS / cutoff_hz
+        self._rows_buf: deque = deque()  # (t, A, y) of the used rows of the last REPLAY_S
+        self._theta_buf = {m: deque() for m in self.methods}  # (t, theta before the row)
+        self._hold_until = dict.fromkeys(self.methods, -math.inf)  # no rows before [s]
         self.keep_history = keep_history
         self._hist_t: list[float] = []
         self._hist = {m: [] for m in self.methods}
@@ -191,14 +228,15 @@ class OnlineIdentifier:
         self._q_prev = None
         self._warm_until = self.warmup
         size = self._lag + 2 * self.guard + 8
-        self._flags = np.zeros(size, dtype=bool)
+        self._flags = np.zeros((size, n), dtype=bool)
         self._pending: deque = deque()
 
     # -- set-up ---------------------------------------------------------------------------
-    def _make(self, method, lam, beta, p0):
+    def _make(self, method, p0):
         if method == "rls":
-            return RLS(lam=lam, p0=p0, theta0=self.nominal)
-        return Hopfield(theta_n=self.nominal, half_widths=self.half_widths, beta=beta, dt=self.dt)
+            return RLS(lam=self.lam, p0=p0, theta0=self.nominal)
+        return Hopfield(theta_n=self.nominal, half_widths=self.half_widths, beta=self.beta,
+                        dt=self.dt, lam=self.lam, info_floor=self.info_floor)  # fmt: skip
 
     @property
     def latency_s(self) -> float:
@@ -211,29 +249,38 @@ class OnlineIdentifier:
         return 1e6 * self.busy_s / max(self.rows, 1)
 
     # -- the stream -----------------------------------------------------------------------
-    def update(self, time_s: float, q_rad, current_a) -> list[ChangeReport]:
-        """Feed one telemetry row: time [s], joint angles (n,) [rad], currents (n,) [A].
+    def update(self, time_s: float, q_rad, current_a, voltage_v=None) -> list[ChangeReport]:
+        """Feed one telemetry row: time [s], joint angles (n,) [rad], currents (n,) [A] and
+        voltages (n,) [V] (period means; the voltages are needed with ``effort='voltage'``).
 
         Returns the change reports completed by this row (usually none).
         """
         started = time.perf_counter()
         q = np.asarray(q_rad, dtype=float)
-        cur = np.asarray(current_a, dtype=float)
+        effort = np.asarray(current_a, dtype=float)
         if self._t_prev is not None and time_s - self._t_prev > 1.5 * self.dt:
             self._restart()
         self._t_prev = float(time_s)
         self._k += 1
         k = self._k
-        flags, size = self._flags, self._flags.size
+        flags, size = self._flags, self._flags.shape[0]
         flags[k % size] = False
-        if self._q_prev is not None and bool(np.any(q == self._q_prev)):
-            flags[k % size] = True  # no encoder count in the period: held or reversing
-            flags[(k - 1) % size] = True
+        q_prev = self._q_prev
+        if q_prev is not None:
+            flat = q == q_prev  # no encoder count in the period: held or reversing
+            flags[k % size] |= flat
+            flags[(k - 1) % size] |= flat
+        if self.motor is not None:
+            if voltage_v is None:
+                raise ValueError("effort='voltage' needs the voltages of every row")
+            effort = self.motor.update(voltage_v, q, effort)
         self._q_prev = q
-        out = self.conditioner.update(q, cur)
+        out = self.conditioner.update(q, effort)
         j = k - self._lag
-        if out.stiction[0] or j < self._warm_until:
+        if j < self._warm_until:
             flags[j % size] = True
+        else:
+            flags[j % size] |= out.slow[0] if self.per_joint else out.stiction[0]
         t_j = float(time_s) - self.conditioner.delay_s
         self._pending.append((j, t_j, out.q[0], out.qd[0], out.qdd[0], out.tau[0]))
         reports: list[ChangeReport] = []
@@ -241,28 +288,37 @@ class OnlineIdentifier:
             j0, t0, q0, qd0, qdd0, tau0 = self._pending.popleft()
             g = self.guard
             idx = np.arange(j0 - g, j0 + g + 1) % size
-            if not flags[idx].any():
-                reports = self._estimate(t0, q0, qd0, qdd0, tau0)
+            bad = flags[idx].any(axis=0)
+            if not self.per_joint and bad.any():
+                bad[:] = True
+            if not bad.all():
+                reports = self._estimate(t0, q0, qd0, qdd0, tau0, ~bad)
         self.rows += 1
         self.busy_s += time.perf_counter() - started
         return reports
 
-    def feed(self, t_s, q_rad, current_a) -> list[ChangeReport]:
-        """Feed many rows (N,), (N, n), (N, n) in order (a replay); returns their reports."""
+    def feed(self, t_s, q_rad, current_a, voltage_v=None) -> list[ChangeReport]:
+        """Feed many rows (N,), (N, n), (N, n), (N, n) in order (a replay); returns their
+        reports."""
         reports: list[ChangeReport] = []
-        rows = zip(np.asarray(t_s, float), np.asarray(q_rad), np.asarray(current_a), strict=True)
-        for t, q, c in rows:
-            reports += self.update(float(t), q, c)
+        cur = np.asarray(current_a)
+        volts = np.asarray(voltage_v) if voltage_v is not None else [None] * len(cur)
+        rows = zip(np.asarray(t_s, float), np.asarray(q_rad), cur, volts, strict=True)
+        for t, q, c, v in rows:
+            reports += self.update(float(t), q, c, v)
         return reports
 
     def _restart(self) -> None:
         """After a gap: fresh conditioner, no pending rows, a new warm-up."""
         self.conditioner.reset()
+        if self.motor is not None:
+            self.motor.reset()
         self._pending.clear()
         self._q_prev = None
         self._warm_until = self._k + 1 + self.warmup
 
-    def _estimate(self, t, q, qd, qdd, tau) -> list[ChangeReport]:
+    def _estimate(self, t, q, qd, qdd, tau, rows) -> list[ChangeReport]:
+        """Update every estimator with the joint equations ``rows`` (n,) bool of one sample."""
         model = self.model
         A_all = model.base_regressor(q[None], qd[None], qdd[None])
         y = tau
@@ -272,26 +328,58 @@ class OnlineIdentifier:
         if self._fixed is not None:
             cols, vals = self._fixed
             y = y - A_all[:, cols] @ vals
-        A = np.ascontiguousarray(A_all[:, self.free])
+        A = A_all[:, self.free]
+        if not rows.all():
+            A, y = A[rows], y[rows]
+        A = np.ascontiguousarray(A)
         y = np.ascontiguousarray(y, dtype=float)
         self.used += 1
+        buf = self._rows_buf
+        buf.append((t, rows, A, y))
+        while buf[0][0] < t - self._replay_s:
+            buf.popleft()
         reports = []
         if self.keep_history:
             self._hist_t.append(t)
         for m, est in self.estimators.items():
-            est.update(A, y)
-            if m == "rls" and self._r0 is not None:
-                est.P_ = np.linalg.inv(np.linalg.inv(est.P_) + self._r0)
+            theta = self.estimate(m)
+            ring = self._theta_buf[m]
+            ring.append((t, theta))
+            while ring[0][0] < t - self._replay_s:
+                ring.popleft()
+            det = self.detectors.get(m)
+            alarm = det.update(t, rows, y - A @ theta, theta) if det is not None else None
+            if t >= self._hold_until[m]:
+                self._step(m, est, A, y)
+            if alarm is not None:
+                self._restart_at(m, est, alarm.time_s)
             theta = est.theta_
             if self.keep_history:
                 self._hist[m].append(theta)
-            det = self.detectors.get(m)
-            if det is not None:
-                rep = det.update(t, theta)
-                if rep is not None:
-                    reports.append(rep)
+            rep = det.settled(t, theta) if det is not None else None
+            if rep is not None:
+                reports.append(rep)
         self.reports += reports
         return reports
+
+    def _step(self, method, est, A, y) -> None:
+        est.update(A, y)
+        if method == "rls" and self._r0 is not None:
+            est.P_ = np.linalg.inv(np.linalg.inv(est.P_) + self._r0)
+
+    def _restart_at(self, method, est, t_change) -> None:
+        """A change at ``t_change`` [s]: back to the estimate before it, the information on
+        :attr:`changing` discarded (friction's kept), the rows since then replayed."""
+        before = [th for tt, th in self._theta_buf[method] if tt < t_change]
+        theta = before[-1] if before else self._theta_buf[method][0][1]
+        if method == "rls":
+            est.discard(self.changing, self.half_widths[self.changing] ** 2, theta=theta)
+        else:
+            est.discard(self.changing, theta=theta)
+        skip = self._hold_until[method] = t_change + self.transition_s
+        for tt, _, A, y in self._rows_buf:
+            if tt >= skip:
+                self._step(method, est, A, y)
 
     # -- results --------------------------------------------------------------------------
     def estimate(self, method: str) -> np.ndarray:

@@ -1,0 +1,81 @@
+"""The motor equation as a low-noise current sensor for online identification.
+
+Over one sample period T the period-mean motor current of a DC motor is
+
+    i = (V - Ke N (q_k - q_k-1) / T) / R
+
+(V the period-mean voltage [V], N the gear ratio, q the joint angle [rad]; the inductance
+adds - L/R di/dt, a 0.25 ms lead on the guard robot, negligible). On the guard robot's
+sensors this is far less noisy in the identification band than the current sensor: 13 mV
+of voltage noise is 1.6 mA at R = 8 ohm against the current sensor's 8 mA, and the encoder
+quantisation enters as a difference, whose noise sits at high frequency where the
+conditioning low-pass removes it. R and Ke are not taken on trust: :class:`MotorCurrent`
+fits a = 1/R and c = Ke N / R per joint by recursive least squares to the measured current
+(i = a V - c dq/T, a long memory, the YAML values as the prior), so the scale stays that of
+the current sensor and follows a slow drift of R (winding temperature).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+MEMORY_S = 600.0
+"""Memory of the a, c fit [s] (forgetting 1 - T / MEMORY_S per row)."""
+PRIOR_REL = 3.0
+"""Prior standard deviation of a and c, relative to the YAML values (a rough guide: V and
+Ke N dq/T nearly cancel, so a tight prior would bias a and c along that direction) [-]."""
+
+
+class MotorCurrent:
+    """Period-mean motor currents [A] from voltages and encoder angles (module docstring).
+
+    ``description``: the robot; every joint needs a drive. Attributes: ``a_`` (n,) 1/R
+    [1/ohm], ``c_`` (n,) Ke N / R [A s/rad].
+    """
+
+    def __init__(self, description):
+        drives = [j.drive for j in description.joints]
+        if any(d is None for d in drives):
+            raise ValueError("the motor-equation current needs a drive on every joint")
+        self.dt = float(description.sample_period)
+        a = np.array([1.0 / d.resistance for d in drives])
+        c = np.array([d.ke * d.gear_ratio / d.resistance for d in drives])
+        self._theta = np.stack([a, c], axis=1)  # (n, 2)
+        prior = (PRIOR_REL * self._theta) ** 2
+        self._P = np.zeros((len(drives), 2, 2))
+        self._P[:, 0, 0], self._P[:, 1, 1] = prior[:, 0], prior[:, 1]
+        self.lam = 1.0 - self.dt / MEMORY_S
+        self._q_prev = None
+
+    @property
+    def a_(self) -> np.ndarray:
+        return self._theta[:, 0].copy()
+
+    @property
+    def c_(self) -> np.ndarray:
+        return self._theta[:, 1].copy()
+
+    def reset(self) -> None:
+        """After a gap: no previous angle (the fit is kept)."""
+        self._q_prev = None
+
+    def update(self, volts, q_rad, current_a) -> np.ndarray:
+        """One row: voltages (n,) [V], angles (n,) [rad], measured currents (n,) [A].
+
+        Returns the motor-equation currents (n,) [A] (the measured ones on the first row
+        after a start or gap, which has no previous angle)."""
+        v = np.asarray(volts, dtype=float)
+        q = np.asarray(q_rad, dtype=float)
+        cur = np.asarray(current_a, dtype=float)
+        q_prev, self._q_prev = self._q_prev, q
+        if q_prev is None:
+            return cur
+        phi = np.stack([v, -(q - q_prev) / self.dt], axis=1)  # (n, 2)
+        P, th = self._P, self._theta
+        Pphi = np.einsum("nij,nj->ni", P, phi)
+        denom = self.lam + np.einsum("ni,ni->n", phi, Pphi)
+        gain = Pphi / denom[:, None]
+        th += gain * (cur - np.einsum("ni,ni->n", phi, th))[:, None]
+        P -= gain[:, :, None] * Pphi[:, None, :]
+        P /= self.lam
+        return np.einsum("ni,ni->n", phi, th)
