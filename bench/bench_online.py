@@ -16,34 +16,19 @@ import argparse
 import tempfile
 from pathlib import Path
 
-import numpy as np
-
 from guardid.capture import capture
 from guardid.cli import main as cli
-from guardid.dynamics import build_model
+from guardid.estimators.metrics import settle_time
 from guardid.excitation import load_trajectory
 from guardid.link import Session, open_port
 from guardid.log import read_log
 from guardid.online import OnlineIdentifier
-from guardid.plant.payload import PayloadChange, payload_params
+from guardid.plant.payload import PayloadChange, base_values
 from guardid.robot import load_robot
 
 GUARD = load_robot("guard")
 PAYLOAD = PayloadChange(30.0, 1.0, (0.12, 0.02, 0.0))
 GRAVITY = ("MX2R", "MY2")
-
-
-def truth(change=None) -> dict[str, float]:
-    model = build_model(GUARD)
-    params = model.params
-    if change is not None:
-        params = payload_params(params, list(model.param_names), 2, change)
-    return dict(zip(model.base.names, model.base.values(params), strict=True))
-
-
-def settle_time(t, x, target, t_change, rel=0.05) -> float:
-    bad = (t > t_change) & (np.abs(x - target) > rel * abs(target))
-    return float(t[bad].max() - t_change) if bad.any() else 0.0
 
 
 def run(seed: int, payload: bool, trajectory, tmp: Path):
@@ -68,7 +53,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=5)
     args = ap.parse_args()
-    new = truth(PAYLOAD)
+    new = base_values(GUARD, PAYLOAD)
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         cli(["excite", "-o", str(tmp / "traj.yaml")], standalone_mode=False)

@@ -15,7 +15,7 @@ from click.testing import CliRunner
 
 from guardid.capture import capture
 from guardid.cli import main as cli
-from guardid.dynamics import build_model
+from guardid.estimators.metrics import settle_time
 from guardid.excitation import load_trajectory
 from guardid.firmware.emulator import STATUS
 from guardid.identify.runs import load_run
@@ -23,7 +23,7 @@ from guardid.link import Session, open_port
 from guardid.log import read_log
 from guardid.online import OnlineIdentifier, online_path, read_tracks_csv
 from guardid.online.offline import track_log
-from guardid.plant.payload import PayloadChange, payload_params
+from guardid.plant.payload import PayloadChange, base_values
 from guardid.robot import load_robot
 
 GUARD = load_robot("guard")
@@ -34,17 +34,7 @@ GRAVITY = ("MX2R", "MY2")
 
 def base_truth(change=None) -> dict[str, float]:
     """Base parameter values of the guard robot, with ``change``'s payload if given."""
-    model = build_model(GUARD)
-    params = model.params
-    if change is not None:
-        params = payload_params(params, list(model.param_names), 2, change)
-    return dict(zip(model.base.names, model.base.values(params), strict=True))
-
-
-def settle_time(t, x, target, t_change, rel=0.05) -> float:
-    """Time [s] after ``t_change`` from which |x - target| <= rel |target| to the end."""
-    bad = (t > t_change) & (np.abs(x - target) > rel * abs(target))
-    return float(t[bad].max() - t_change) if bad.any() else 0.0
+    return base_values(GUARD, change)
 
 
 @pytest.fixture(scope="module")

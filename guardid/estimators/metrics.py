@@ -31,3 +31,11 @@ def d_tau(A, tau, theta_hat, per_joint: bool = False):
     r = y2 - A3 @ np.asarray(theta_hat, dtype=float)
     per = np.linalg.norm(r, axis=0) / np.linalg.norm(y2, axis=0)
     return per if per_joint else float(per.mean())
+
+
+def settle_time(t_s, x, target: float, t_change_s: float, rel: float = 0.05) -> float:
+    """Settle time [s] of an estimate track x(t) after ``t_change_s``: from then on to the
+    end of the track, |x - target| <= ``rel`` |target| (0 if it never leaves the band)."""
+    t_s, x = np.asarray(t_s, dtype=float), np.asarray(x, dtype=float)
+    bad = (t_s > t_change_s) & (np.abs(x - target) > rel * abs(target))
+    return float(t_s[bad].max() - t_change_s) if bad.any() else 0.0

@@ -36,3 +36,15 @@ def payload_params(params: np.ndarray, names: list[str], n_links: int, change) -
     for key, value in delta.items():
         out[names.index(f"{key}{n_links}")] += value
     return out
+
+
+def base_values(description, change=None) -> dict[str, float]:
+    """The robot's base parameters {name: value} [SI], with ``change``'s payload if given
+    (the truth an online estimator tracking that payload should reach)."""
+    from guardid.dynamics import build_model
+
+    model = build_model(description)
+    params = model.params
+    if change is not None:
+        params = payload_params(params, list(model.param_names), len(description.links), change)
+    return dict(zip(model.base.names, model.base.values(params), strict=True))
