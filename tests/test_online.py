@@ -37,6 +37,23 @@ def base_truth(change=None) -> dict[str, float]:
     return base_values(GUARD, change)
 
 
+def live_capture(url, traj_path, seconds, log):
+    """Capture ``seconds`` from ``url`` to ``log`` with a live RLS + Hopfield tracker fed by
+    the ``on_row`` callback; returns (tracker, capture result)."""
+    tracker = OnlineIdentifier(GUARD, ("rls", "hopfield"), highest_harmonic_hz=0.5)
+    port = open_port(url)
+    try:
+        session = Session(port)
+        session.handshake()
+        result = capture(
+            session, GUARD, load_trajectory(traj_path), seconds, log, {"robot": "guard"},
+            on_row=lambda t, q, v, i: tracker.update(t, q, i, v),
+        )  # fmt: skip
+    finally:
+        port.close()
+    return tracker, result
+
+
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("online")
@@ -52,17 +69,8 @@ def runs(tmp_path_factory):
     )  # fmt: skip
     assert res.exit_code == 0, res.output
     # the no-change run through the library: capture() with the on_row callback
-    trajectory = load_trajectory(traj)
-    tracker = OnlineIdentifier(GUARD, ("rls", "hopfield"), highest_harmonic_hz=0.5)
-    port = open_port("sim://guard?seed=1")
-    session = Session(port)
-    session.handshake()
     calm = tmp / "calm.csv"
-    result = capture(
-        session, GUARD, trajectory, 60.0, calm, {"robot": "guard"},
-        on_row=lambda t, q, v, i: tracker.update(t, q, i, v),
-    )  # fmt: skip
-    port.close()
+    tracker, result = live_capture("sim://guard?seed=1", traj, 60.0, calm)
     assert result.rows == 4000
     return {
         "traj": traj,
@@ -159,16 +167,8 @@ def test_realtime_capture_keeps_up_with_both_estimators(runs, tmp_path):
     """Paced at 4 x real time (3.75 ms per 15 ms tick): every row arrives, the firmware never
     runs out of setpoints, and the tracker saw every row (a backlog would show as lost rows
     or setpoint underruns)."""
-    tracker = OnlineIdentifier(GUARD, ("rls", "hopfield"), highest_harmonic_hz=0.5)
-    port = open_port("sim://guard?seed=2&pacing=4")
-    session = Session(port)
-    session.handshake()
     log = tmp_path / "rt.csv"
-    result = capture(
-        session, GUARD, load_trajectory(runs["traj"]), 20.0, log, {"robot": "guard"},
-        on_row=lambda t, q, v, i: tracker.update(t, q, i, v),
-    )  # fmt: skip
-    port.close()
+    tracker, result = live_capture("sim://guard?seed=2&pacing=4", runs["traj"], 20.0, log)
     assert result.ended == "complete" and result.rows == result.ticks_expected == 1333
     status = read_log(log).columns["status"].astype(int)
     assert not np.any(status & (1 << STATUS["setpoint_underrun"]))

@@ -41,7 +41,11 @@ class RLS(Estimator):
 
     Parameters: ``lam`` forgetting factor in (0, 1]; ``p0`` initial covariance (scalar ->
     p0 I, or (p, p)), in (unit of theta / unit of y)^2 per unit weight; ``theta0`` initial
-    estimate (p,) (zeros if None); ``history_every`` offline history stride (samples).
+    estimate (p,) (zeros if None); ``history_every`` offline history stride (samples);
+    ``info_floor`` (p,) regularised forgetting: with lam < 1 the information forgotten per
+    sample, (1 - lam) P^-1, is replaced by (1 - lam) diag(info_floor), so the information
+    never falls below the floor and unexcited directions cannot wind up (one p x p inverse
+    pair per sample; ``fit`` then runs sample by sample).
     Attributes: ``theta_`` (p,), ``P_`` (p, p) covariance-like matrix, ``n_samples_``,
     ``history_`` (n_hist, p), ``history_samples_`` (n_hist,).
     """
@@ -49,10 +53,13 @@ class RLS(Estimator):
     _ws = None  # fast-path work arrays (see ``_make_workspace``)
     _ws_theta = None
 
-    def __init__(self, lam: float = 1.0, p0=1e6, theta0=None, history_every: int = 10):
+    def __init__(
+        self, lam: float = 1.0, p0=1e6, theta0=None, history_every: int = 10, info_floor=None
+    ):
         if not 0.0 < lam <= 1.0:
             raise ValueError("lam must be in (0, 1]")
         self.lam = float(lam)
+        self.info_floor = None if info_floor is None else np.asarray(info_floor, dtype=float)
         self.p0 = p0
         self.theta0 = theta0
         self.history_every = int(history_every)
@@ -150,7 +157,15 @@ class RLS(Estimator):
         if self.n_samples_ % 64 == 0:  # remove the slow asymmetric round-off drift
             _add(P, P.T, out=T)
             _multiply(T, 0.5, out=P)
+        if self.info_floor is not None and lam < 1.0:
+            self._floor(P)
         return self
+
+    def _floor(self, P) -> None:
+        """Regularised forgetting in place: P <- (P^-1 + (1 - lam) diag(info_floor))^-1."""
+        R = np.linalg.inv(P)
+        R[np.diag_indices_from(R)] += (1.0 - self.lam) * self.info_floor
+        P[...] = np.linalg.inv(R)
 
     def _update_general(self, A_k, y_k):
         """Reference per-sample step for any n_out (validated (n_out, p) / (n_out,) input)."""
@@ -176,6 +191,8 @@ class RLS(Estimator):
         self.n_samples_ += 1
         if self.n_samples_ % 64 == 0:  # remove the slow asymmetric round-off drift
             P = 0.5 * (P + P.T)
+        if self.info_floor is not None and lam != 1.0:
+            self._floor(P)
         self.P_ = P
         return self
 
@@ -201,6 +218,8 @@ class RLS(Estimator):
         A3, y2 = as_blocks(A, y)
         N, n, p = A3.shape
         self._init_state(p)
+        if self.info_floor is not None and self.lam < 1.0:
+            return self._fit_by_samples(A3, y2)
         R = np.linalg.inv(self.P_)
         b = R @ self.theta_
         k = max(self.history_every, 1)
@@ -245,4 +264,16 @@ class RLS(Estimator):
         self.P_ = 0.5 * (self.P_ + self.P_.T)
         self.theta_ = np.linalg.solve(R, b)
         self.n_samples_ = N
+        return self
+
+    def _fit_by_samples(self, A3, y2):
+        """``fit`` with the information floor: the online step sample by sample."""
+        k = max(self.history_every, 1)
+        hist = []
+        for i in range(A3.shape[0]):
+            self.update(A3[i], y2[i])
+            if (i + 1) % k == 0:
+                hist.append(self.theta_)
+        self.history_ = np.array(hist) if hist else np.empty((0, A3.shape[2]))
+        self.history_samples_ = checkpoints(A3.shape[0], k)
         return self

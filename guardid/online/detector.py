@@ -85,10 +85,12 @@ class ChangeReport:
 
 @dataclass(frozen=True)
 class Alarm:
-    """The CUSUM fired at ``alarm_s`` [s]; the change happened at ``time_s`` [s]."""
+    """The CUSUM fired at ``alarm_s`` [s]; the change happened at ``time_s`` [s];
+    ``theta_before`` (b,) is the estimate fed to the last row before the change time."""
 
     time_s: float
     alarm_s: float
+    theta_before: np.ndarray
 
 
 class ChangeDetector:
@@ -117,7 +119,7 @@ class ChangeDetector:
         self.state = "holdoff"
         self._t0: float | None = None
         self._phase_start = 0.0
-        self._recent: deque = deque()  # (t, watched theta) of the last lookback
+        self._recent: deque = deque()  # (t, theta) of the last settle_s or reference_s + 1 s
         self._start_reference(0.0)
 
     # -- the stream -----------------------------------------------------------------------
@@ -126,10 +128,11 @@ class ChangeDetector:
         ``residual`` (m,) a-priori residuals of those equations, ``theta`` (b,) the estimate
         before the row. Returns an :class:`Alarm` when the CUSUM fires."""
         s = self.settings
-        x = np.asarray(theta, dtype=float)[self.index]
+        theta = np.asarray(theta, dtype=float)
+        x = theta[self.index]
         if self._t0 is None:
             self._t0 = t
-        self._recent.append((t, x))
+        self._recent.append((t, theta))
         while self._recent[0][0] < t - max(s.settle_s, s.reference_s) - 1.0:
             self._recent.popleft()
         rows = np.asarray(rows, dtype=bool)
@@ -212,10 +215,10 @@ class ChangeDetector:
         if not fired.any():
             return None
         onset = float(np.min(self._zero_t[fired]))
-        alarm = Alarm(onset, t)
+        before = [x for tt, x in self._recent if tt < onset] or [self._recent[0][1]]
+        alarm = Alarm(onset, t, before[-1])
         self.alarms.append(alarm)
-        before = [x for tt, x in self._recent if tt <= onset] or [self._recent[0][1]]
-        self.before = before[-1]
+        self.before = alarm.theta_before[self.index]
         self.onset = onset
         self._new: deque = deque()
         self.state = "settling"

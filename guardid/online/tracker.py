@@ -196,7 +196,6 @@ class OnlineIdentifier:
         self._known = bool(np.any(self.model.known_torque(probe, probe, probe)))
         self.half_widths = prior_half_widths(self.nominal, self.names)
         self.info_floor = 1.0 / (rho * self.half_widths) ** 2 if rho and lam < 1.0 else None
-        self._r0 = None if self.info_floor is None else np.diag((1.0 - lam) * self.info_floor)
         self.lam, self.beta = float(lam), float(beta)
         self.estimators = {m: self._make(m, p0) for m in self.methods}
         #: parameters whose information a detected change discards: all but friction
@@ -214,7 +213,6 @@ class OnlineIdentifier:
         #: still mixes the torque before and after the change [s]
         self.transition_s = TRANSITION_PERIODS / cutoff_hz
         self._rows_buf: deque = deque()  # (t, A, y) of the used rows of the last REPLAY_S
-        self._theta_buf = {m: deque() for m in self.methods}  # (t, theta before the row)
         self._hold_until = dict.fromkeys(self.methods, -math.inf)  # no rows before [s]
         self.keep_history = keep_history
         self._hist_t: list[float] = []
@@ -234,7 +232,7 @@ class OnlineIdentifier:
     # -- set-up ---------------------------------------------------------------------------
     def _make(self, method, p0):
         if method == "rls":
-            return RLS(lam=self.lam, p0=p0, theta0=self.nominal)
+            return RLS(lam=self.lam, p0=p0, theta0=self.nominal, info_floor=self.info_floor)
         return Hopfield(theta_n=self.nominal, half_widths=self.half_widths, beta=self.beta,
                         dt=self.dt, lam=self.lam, info_floor=self.info_floor)  # fmt: skip
 
@@ -335,7 +333,7 @@ class OnlineIdentifier:
         y = np.ascontiguousarray(y, dtype=float)
         self.used += 1
         buf = self._rows_buf
-        buf.append((t, rows, A, y))
+        buf.append((t, A, y))
         while buf[0][0] < t - self._replay_s:
             buf.popleft()
         reports = []
@@ -343,16 +341,12 @@ class OnlineIdentifier:
             self._hist_t.append(t)
         for m, est in self.estimators.items():
             theta = self.estimate(m)
-            ring = self._theta_buf[m]
-            ring.append((t, theta))
-            while ring[0][0] < t - self._replay_s:
-                ring.popleft()
             det = self.detectors.get(m)
             alarm = det.update(t, rows, y - A @ theta, theta) if det is not None else None
             if t >= self._hold_until[m]:
-                self._step(m, est, A, y)
+                est.update(A, y)
             if alarm is not None:
-                self._restart_at(m, est, alarm.time_s)
+                self._restart_at(m, est, alarm)
             theta = est.theta_
             if self.keep_history:
                 self._hist[m].append(theta)
@@ -362,24 +356,19 @@ class OnlineIdentifier:
         self.reports += reports
         return reports
 
-    def _step(self, method, est, A, y) -> None:
-        est.update(A, y)
-        if method == "rls" and self._r0 is not None:
-            est.P_ = np.linalg.inv(np.linalg.inv(est.P_) + self._r0)
-
-    def _restart_at(self, method, est, t_change) -> None:
-        """A change at ``t_change`` [s]: back to the estimate before it, the information on
-        :attr:`changing` discarded (friction's kept), the rows since then replayed."""
-        before = [th for tt, th in self._theta_buf[method] if tt < t_change]
-        theta = before[-1] if before else self._theta_buf[method][0][1]
+    def _restart_at(self, method, est, alarm) -> None:
+        """A change (:class:`guardid.online.detector.Alarm`): back to the estimate before it,
+        the information on :attr:`changing` discarded (friction's kept), the rows since then
+        replayed."""
+        theta = alarm.theta_before
         if method == "rls":
             est.discard(self.changing, self.half_widths[self.changing] ** 2, theta=theta)
         else:
             est.discard(self.changing, theta=theta)
-        skip = self._hold_until[method] = t_change + self.transition_s
-        for tt, _, A, y in self._rows_buf:
+        skip = self._hold_until[method] = alarm.time_s + self.transition_s
+        for tt, A, y in self._rows_buf:
             if tt >= skip:
-                self._step(method, est, A, y)
+                est.update(A, y)
 
     # -- results --------------------------------------------------------------------------
     def estimate(self, method: str) -> np.ndarray:
