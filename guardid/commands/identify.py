@@ -147,6 +147,14 @@ def identify(
     from guardid.online.offline import track_log
 
     tracker = track_log(run, description, methods, lam, beta, log_path=log)
+    if tracker is not None and tracker.reports:
+        times = sorted({round(r.time_s, 1) for r in tracker.reports})
+        when = ", ".join(f"{t:.1f} s" for t in times)
+        click.echo(
+            f"warning: {log}: the parameters changed at {when}; the table's batch estimates "
+            "mix the motion before and after it (the tracker's reports give both sides)",
+            err=True,
+        )
     if output:
         with open(output, "w", encoding="utf-8") as f:
             source = log if not several else ", ".join(str(x) for x in logs)
