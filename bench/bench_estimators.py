@@ -1,6 +1,7 @@
 """Estimator timings (run by hand: ``python bench/bench_estimators.py [--online-only]``).
 
-Prints the per-sample online update time of RLS and Hopfield (p = 12, n_out = 2) and of
+Prints the per-sample online update time of RLS, Hopfield (the paper's per-sample weights)
+and the windowed Hopfield network of the online tracker (``lam``; p = 12, n_out = 2) and of
 padasip's single-output FilterRLS fed the two rows of each sample as two updates, all on the
 same 20000 rows in the same run, and the ratios; then the offline identification time of a
 240000-sample log with LS, RLS and Hopfield, as a multiple of real time at 15 ms per sample.
@@ -44,14 +45,15 @@ def online(A, y, th, box, chunk=500):
         pa = None
         print("padasip not installed")
     n = A.shape[0]
-    names = ["RLS", "Hopfield"] + (["padasip"] if pa is not None else [])
+    names = ["RLS", "Hopfield", "Hop-window"] + (["padasip"] if pa is not None else [])
     times = {name: [] for name in names}
     final = {}
     clock = time.perf_counter
     for _ in range(REPEATS):
         rls = RLS(lam=0.999, p0=1e3)
         hop = Hopfield(bounds=box, beta=0.05, dt=TS)
-        steps = {"RLS": rls.update, "Hopfield": hop.update}
+        win = Hopfield(bounds=box, beta=0.05, dt=TS, lam=0.999)
+        steps = {"RLS": rls.update, "Hopfield": hop.update, "Hop-window": win.update}
         if pa is not None:  # same forgetting factor and initial P = 1000 I as the RLS above
             f = pa.filters.FilterRLS(P, mu=0.999, eps=1e-3, w="zeros")
 
@@ -71,7 +73,7 @@ def online(A, y, th, box, chunk=500):
                 total[name] += clock() - t
         for name in names:
             times[name].append(total[name] / n * 1e6)
-        final = {"RLS": rls.theta_, "Hopfield": hop.theta_}
+        final = {"RLS": rls.theta_, "Hopfield": hop.theta_, "Hop-window": win.theta_}
         if pa is not None:
             final["padasip"] = f.w
     print(
@@ -88,7 +90,7 @@ def online(A, y, th, box, chunk=500):
             f"us/sample (passes: {', '.join(f'{x:.2f}' for x in t)}); max |theta err| {err:.1e}"
         )
     if pa is not None:
-        for name in ("RLS", "Hopfield"):
+        for name in ("RLS", "Hopfield", "Hop-window"):
             r_med = stats["padasip"][0] / stats[name][0]
             r_best = stats["padasip"][1] / stats[name][1]
             r_min = min(a / b for a, b in zip(times["padasip"], times[name], strict=True))

@@ -80,6 +80,17 @@ def test_rls_discard_covariance_blocks(n_out):
     np.testing.assert_allclose(est.P_, (P0 - K @ phi.T @ P0) / 0.98, rtol=1e-10, atol=1e-14)
 
 
+def test_rls_discard_before_any_update():
+    """A fresh RLS starts from p0 / theta0; without a size it says what it needs."""
+    est = RLS(p0=1e3, theta0=np.zeros(4)).discard(IDX, 5.0, theta=TH1)
+    expected = 1e3 * np.eye(4)
+    expected[IDX, IDX] = 5.0
+    np.testing.assert_array_equal(est.P_, expected)
+    np.testing.assert_array_equal(est.theta_, TH1)
+    with pytest.raises(ValueError, match="needs theta or theta0"):
+        RLS().discard(IDX, 5.0)
+
+
 @pytest.mark.parametrize("n_out", [1, 2])
 def test_rls_discard_tracks_regime_change(n_out):
     p0, prior_var = 1e4, 1e2

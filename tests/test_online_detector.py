@@ -126,11 +126,12 @@ def test_alarm_without_moving_estimates_gives_no_report_and_relearns():
     alarms, reports = drive(det, t[:end], residual[:end], theta[:end])
     assert len(alarms) == 1 and abs(alarms[0].time_s - 30.0) <= 2 * DT + 1e-9
     assert reports == [] and det.reports == []
-    assert det.state == "reference"
-    # and it arms again on the fresh reference, with no further alarm on the quiet rest
+    # armed again at once (old residual scales) while it learns a fresh reference, with no
+    # further alarm on the quiet rest
+    assert det.state == "armed"
     alarms, reports = drive(det, t[end:], residual[end:], theta[end:])
     assert alarms == [] and reports == []
-    assert det.state == "armed"
+    assert det.state == "armed" and det.sigma == pytest.approx(SCALES, rel=0.2)
 
 
 def test_nothing_is_watched_during_the_holdoff():
@@ -158,6 +159,19 @@ def test_two_changes_give_two_alarms_and_two_reports():
     assert reports[0].after == pytest.approx(mid[:2], rel=0.01)
     assert reports[1].before == pytest.approx(mid[:2], rel=0.01)
     assert reports[1].after == pytest.approx(NEW[:2], rel=0.01)
+
+
+def test_a_change_soon_after_the_settling_is_caught():
+    """Re-armed with the old residual scales right after settling: a second change 1 s
+    after that (6 s after the first) is caught, though no fresh reference exists yet."""
+    second = 30.0 + SETTINGS.settle_s + 1.0
+    t, residual, theta = make_stream(
+        bias=[(30.0, 31.0, 0, 20.0), (second, second + 1.0, 1, -20.0)],
+        steps=[(30.0, OLD, NEW), (second, NEW, OLD)],
+    )
+    alarms, reports = drive(detector(), t, residual, theta)
+    assert [round(a.time_s, 1) for a in alarms] == [30.0, second]
+    assert len(reports) == 2 and reports[1].after == pytest.approx(OLD[:2], rel=0.01)
 
 
 def test_row_with_one_joint_leaves_the_other_cusum_unchanged():

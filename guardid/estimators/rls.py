@@ -83,9 +83,15 @@ class RLS(Estimator):
         becomes diag(``prior_var``) (len(idx),) [(unit of theta / unit of y)^2], their
         cross-covariances with the other parameters 0; the others keep their marginal
         covariance. ``theta`` (p,), if given, replaces the estimate (e.g. its value before
-        the change). Returns ``self``.
+        the change). Before the first update the state starts from ``p0`` / ``theta0`` (the
+        size comes from ``theta`` or ``theta0``). Returns ``self``.
         """
         idx = np.asarray(idx, dtype=int)
+        if not hasattr(self, "P_"):
+            start = theta if theta is not None else self.theta0
+            if start is None:
+                raise ValueError("discard before the first update needs theta or theta0")
+            self._init_state(np.asarray(start).size)
         P = np.array(self.P_, dtype=float)
         P[idx, :] = 0.0
         P[:, idx] = 0.0

@@ -23,7 +23,9 @@ long memory has moved. Per estimator:
    ``new_s`` before ``settle_s`` after the change time. They are reported when some watched
    estimate moved beyond its uncertainty: by more than ``n_sigma`` x its spread in the
    reference window and more than ``rel_floor`` x its old value. Either way the detector
-   then learns a fresh reference (step 2), so a later change is caught too.
+   then re-arms at once with the residual scales it had (a payload hardly changes the
+   noise) while it learns a fresh reference over the next ``reference_s``, which then
+   replaces them: a later change is caught from ``settle_s`` after the last one on.
 
 Times are those of the rows, i.e. the instants of the motion they describe (the tracker
 removes its conditioning and guard delays), not the arrival times.
@@ -141,13 +143,16 @@ class ChangeDetector:
                 self._start_reference(t)
             return None
         if self.state == "reference":
-            self._sq[rows] += np.asarray(residual, dtype=float) ** 2
-            self._count[rows] += 1
-            self._ref_x.append(x)
+            self._accumulate(rows, residual, x)
             if t - self._phase_start >= s.reference_s:
                 self._arm(t)
             return None
         if self.state == "armed":
+            if self._refreshing:
+                self._accumulate(rows, residual, x)
+                if t - self._phase_start >= s.reference_s:
+                    self._set_reference()
+                    self._refreshing = False
             return self._cusum(t, rows, residual)
         return None
 
@@ -165,6 +170,7 @@ class ChangeDetector:
         after = np.mean([x for _, x in self._new], axis=0)
         alarm = self.alarms[-1]
         self._start_reference(t)
+        self._arm(t, refresh=True)
         moved = np.abs(after - self.before)
         bar = np.maximum(s.n_sigma * self.spread, s.rel_floor * np.abs(self.before))
         if not np.any(moved > bar):
@@ -192,13 +198,26 @@ class ChangeDetector:
         self._count = np.zeros(self.n)
         self._ref_x: list[np.ndarray] = []
 
-    def _arm(self, t: float) -> None:
+    def _accumulate(self, rows, residual, x) -> None:
+        self._sq[rows] += np.asarray(residual, dtype=float) ** 2
+        self._count[rows] += 1
+        self._ref_x.append(x)
+
+    def _set_reference(self) -> None:
+        """Residual scales ``sigma`` (n,) and estimate spreads from the reference window."""
         rms = np.sqrt(self._sq / np.maximum(self._count, 1))
         floor = max(float(np.max(rms)) * 1e-3, 1e-12)
         # a joint with (almost) no rows in the window has no scale: not watched (z = 0)
         self.sigma = np.where(self._count >= MIN_REFERENCE_ROWS, np.maximum(rms, floor), np.inf)
         ref = np.asarray(self._ref_x)
         self.spread = ref.std(axis=0) if len(ref) else np.zeros(len(self.index))
+
+    def _arm(self, t: float, refresh: bool = False) -> None:
+        """Start the CUSUM; ``refresh``: with the previous reference while a new one is
+        learned (after a change), else with the window just learned."""
+        self._refreshing = refresh
+        if not refresh:
+            self._set_reference()
         self._g = np.zeros((2, self.n))
         self._zero_t = np.full((2, self.n), t)
         self.state = "armed"
