@@ -240,3 +240,18 @@ def test_a_second_change_eight_seconds_later_is_caught_too():
         assert first.after[0] == pytest.approx(new["MX2R"], rel=0.05)
         assert second.after[0] == pytest.approx(old["MX2R"], rel=0.05)
         assert tracker.tracks()[m].theta[-1, k] == pytest.approx(old["MX2R"], rel=0.02)
+
+
+def test_capture_notes_a_long_excitation_period(runs, tmp_path):
+    """--online on a 10 s excitation says that changes take about a period to track; the
+    5 s tracking excitation of the module's capture gets no such note."""
+    runner = CliRunner()
+    traj = tmp_path / "slow.yaml"
+    assert runner.invoke(cli, ["excite", "--no-optimise", "-o", str(traj)]).exit_code == 0
+    res = runner.invoke(
+        cli, ["capture", "--trajectory", str(traj), "--duration", "0.5", "--online", "rls",
+              "--quiet", "-o", str(tmp_path / "r.csv")],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert "repeats every 10 s" in res.output and "--base-freq 0.2" in res.output
+    assert "repeats every" not in runs["pay_output"]

@@ -71,6 +71,13 @@ def capture(
     if duration <= 0:
         raise ConfigError(f"--duration: must be > 0 s, got {duration:g}")
     tracker = _tracker(online, description, trajectory, online_effort)
+    if tracker is not None and trajectory.period > TRACKING_PERIOD_S:
+        click.echo(
+            f"note: {trajectory_path} repeats every {trajectory.period:g} s; a change is "
+            f"tracked within about one period (for {TRACKING_PERIOD_S:g} s: guardid excite "
+            "--base-freq 0.2 --harmonics 3, README 'Excitation for tracking')",
+            err=True,
+        )
     port_url = port or f"sim://{robot}"
     serial_port = open_port(port_url, baud)
     session = Session(serial_port, timeout_s=timeout)
@@ -140,6 +147,10 @@ def _progress(c: dict) -> None:
         err=True,
         nl=False,
     )
+
+
+TRACKING_PERIOD_S = 5.0
+"""--online: excitation periods longer than this [s] get a note on tracking speed."""
 
 
 def _tracker(online, description, trajectory, effort):
