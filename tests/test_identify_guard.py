@@ -134,3 +134,20 @@ def test_cli_identify_and_validate(logs, tmp_path):
         capture_output=True, text=True, check=True,
     )  # fmt: skip
     assert "LS" in res.stdout
+
+
+def test_two_logs_fit_the_motors_on_both(logs, result):
+    """Stacked logs: the motor equations of both runs form one fit (no row spans the two
+    runs), so R and Ke use every row of both and are at least as certain as from one."""
+    runs = [load_run(logs[k]) for k in ("a", "b")]
+    single_b = identify(runs[1].t, runs[1].q, runs[1].current, GUARD, methods=("ls",),
+                        voltage_v=runs[1].voltage, ticks=runs[1].ticks).motors  # fmt: skip
+    both = identify(
+        [r.t for r in runs], [r.q for r in runs], [r.current for r in runs], GUARD,
+        methods=("ls",), voltage_v=[r.voltage for r in runs], ticks=[r.ticks for r in runs],
+    ).motors  # fmt: skip
+    for m, a, b, joint in zip(both, result.motors, single_b, GUARD.joints, strict=True):
+        assert m.rows == a.rows + b.rows
+        assert m.resistance == pytest.approx(joint.drive.resistance, rel=0.03)
+        assert m.ke == pytest.approx(joint.drive.ke, rel=0.03)
+        assert m.resistance_std < min(a.resistance_std, b.resistance_std)

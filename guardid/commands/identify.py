@@ -117,7 +117,7 @@ def identify(
 
     LOG is a guardid log, or a foreign CSV / MATLAB .mat log read through --columns (the
     same options apply to every LOG). Several logs: each is conditioned on its own and the
-    identification rows are stacked (one fit); motor constants come from the first.
+    identification rows are stacked (one fit), and so are the motor equations.
     """
     from guardid.identify import identify as run_identify
     from guardid.identify.pipeline import stacked_rows

@@ -317,7 +317,8 @@ def identify(
 
     Several runs: t_s, q_rad and current_a are lists (one array per run), conditioned
     separately and their rows stacked (:func:`stacked_rows`); voltage_v and ticks are then
-    lists too and the motors are estimated from the first run. ``parallel_filter_hz`` [Hz]:
+    lists too and the motors are estimated from all runs together (a motor-equation row
+    never spans two runs). ``parallel_filter_hz`` [Hz]:
     Gautier's parallel filter on the regressor and the torque (:func:`identification_rows`).
     """
     unknown = [m for m in methods if m not in METHODS]
@@ -330,10 +331,13 @@ def identify(
         runs, description, cutoff_hz, in_current_units, effort_is_torque,
         highest_harmonic_hz=highest_harmonic_hz, parallel_filter_hz=parallel_filter_hz,
     )  # fmt: skip
-    if several:  # motors (R, Ke) from the first run
-        t_s, q_rad, current_a = runs[0]
-        voltage_v = voltage_v[0] if voltage_v else None
-        ticks = ticks[0] if ticks else None
+    if several:  # motors (R, Ke) from all runs, stacked
+        q_rad = np.concatenate([np.asarray(r[1], dtype=float) for r in runs])
+        current_a = np.concatenate([np.asarray(r[2], dtype=float) for r in runs])
+        voltage_v = (
+            np.concatenate([np.asarray(v, dtype=float) for v in voltage_v]) if voltage_v else None
+        )
+        ticks = _separated_ticks(ticks) if ticks else None
     free = _free_columns(model, description)
     names = tuple(model.base.names[i] for i in free)
     nominal = model.base.values(model.params)[free]
@@ -446,6 +450,17 @@ def _result(method, est, A, y, t_rows) -> MethodResult:
         d_tau=float(d_tau(A, y, theta)),
         d_tau_per_joint=np.asarray(d_tau(A, y, theta, per_joint=True)),
     )
+
+
+def _separated_ticks(ticks_per_run) -> np.ndarray:
+    """One tick axis for stacked runs: each run's ticks shifted to start 2 after the previous
+    run's last, so that no pair of consecutive ticks spans two runs."""
+    out, start = [], 0
+    for ticks in ticks_per_run:
+        ticks = np.asarray(ticks, dtype=np.int64)
+        out.append(ticks - ticks[0] + start)
+        start = int(out[-1][-1]) + 2
+    return np.concatenate(out)
 
 
 def _motors(description, ticks, q_rad, voltage_v, current_a) -> list[MotorEstimate]:
