@@ -56,9 +56,11 @@ samples/s; 3.1-3.5 s before).
 
 from __future__ import annotations
 
+import functools
 from math import sqrt as _sqrt
 
 import numpy as np
+from scipy.linalg.lapack import dposv as _dposv
 
 from ._base import Estimator, as_blocks, as_sample, checkpoints
 
@@ -74,10 +76,16 @@ _maximum = np.maximum
 _SHAPE2 = (2,)
 
 
+@functools.cache
+def _diagonal(p: int) -> np.ndarray:
+    """Indices 0..p-1: ``M[d, d]`` is the diagonal of a (p, p) matrix."""
+    return np.arange(p)
+
+
 def _boundary_step(s: np.ndarray, ds: np.ndarray) -> np.ndarray:
     """s + alpha ds with alpha <= 1 keeping each component within 90 % of its distance."""
     room = 1.0 - s * np.sign(ds)
-    frac = float(np.max(np.abs(ds) / room))
+    frac = float((np.abs(ds) / room).max())
     if frac > _TAU:
         ds = ds * (_TAU / frac)
     s = s + ds
@@ -193,15 +201,21 @@ class Hopfield(Estimator):
         W += A_k.T @ A_k
         b *= lam
         b += A_k.T @ y_k
+        diag = _diagonal(W.shape[0])
         if self.info_floor is not None and lam < 1.0:
             f = (1.0 - lam) * self.info_floor
-            W[np.diag_indices_from(W)] += f
+            W[diag, diag] += f
             b += f * self.theta_
         S, s = self.scale_, self.s_
         g = self.dt / self.beta
         M = g * (S[:, None] * W * S[None, :])
-        M[np.diag_indices_from(M)] += 1.0 / (1.0 - s * s)
-        ds = np.linalg.solve(M, g * S * (b - W @ self.theta_))
+        M[diag, diag] += 1.0 / (1.0 - s * s)
+        rhs = g * S * (b - W @ self.theta_)
+        # M = D + g S W S is symmetric positive definite (D >= I, W >= 0): Cholesky, with
+        # LAPACK called directly (numpy.linalg.solve's checks cost more than the solve here)
+        _, ds, info = _dposv(M, rhs, overwrite_a=1)
+        if info != 0:  # not positive definite by round-off
+            ds = np.linalg.solve(M, rhs)
         self.s_ = _boundary_step(s, ds)
         self.theta_ = self.center_ + S * self.s_
         self.n_samples_ += 1
