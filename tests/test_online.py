@@ -223,8 +223,8 @@ def test_current_sensor_effort_tracks_the_payload_too(runs):
 def test_a_second_change_eight_seconds_later_is_caught_too():
     """Pick-up at 25 s, put-down at 33 s (``guardid simulate``'s closed loop, its own
     sum-of-sines reference): the detector re-arms 5 s after the first change with its old
-    residual scales, so both changes are reported within 1 s and the estimates return to the
-    unloaded values."""
+    residual scales, so both changes are reported and the estimates return to the unloaded
+    values."""
     from guardid.commands.simulate import run as simulate
 
     pick, drop = PayloadChange(25.0, 1.0, PAYLOAD.com), PayloadChange(33.0, 0.0, PAYLOAD.com)
@@ -234,9 +234,12 @@ def test_a_second_change_eight_seconds_later_is_caught_too():
     old, new = base_truth(), base_truth(pick)
     k = tracker.names.index("MX2R")
     for m, det in tracker.detectors.items():
-        assert [round(a.time_s) for a in det.alarms] == [25, 33], m
+        assert len(det.alarms) == 2, m
         first, second = det.reports
-        assert abs(first.time_s - pick.time) <= 1.0 and abs(second.time_s - drop.time) <= 1.0
+        # the tilt is at rest from 24.1 s to 25.2 s: the pick-up is reported as that interval
+        assert first.time_s <= pick.time <= first.latest_s < first.time_s + 2.0
+        assert "between" in str(first) and "joint at rest" in str(first)
+        assert abs(second.time_s - drop.time) <= 1.0 and "changed at" in str(second)
         assert first.after[0] == pytest.approx(new["MX2R"], rel=0.05)
         assert second.after[0] == pytest.approx(old["MX2R"], rel=0.05)
         assert tracker.tracks()[m].theta[-1, k] == pytest.approx(old["MX2R"], rel=0.02)

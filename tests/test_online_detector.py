@@ -174,6 +174,29 @@ def test_a_change_soon_after_the_settling_is_caught():
     assert len(reports) == 2 and reports[1].after == pytest.approx(OLD[:2], rel=0.01)
 
 
+def test_a_change_while_the_joint_is_at_rest_is_reported_as_the_interval():
+    """Joint 1 has no rows from 29 s to 31 s (held near stiction) and the change happens at
+    30 s: the alarm dates it from its last row before the gap to its first row after it, the
+    report names that interval, and the new values are taken 5 s after the gap's end."""
+    t, residual, theta = make_stream(bias=[(31.0, 32.0, 1, 20.0)], steps=[(31.0, OLD, NEW)])
+    det = detector()
+    alarms, reports = [], []
+    for ti, ei, thi in zip(t, residual, theta, strict=True):
+        rows = np.array([True, not 29.0 <= ti < 31.0])
+        alarm = det.update(ti, rows, ei[rows], thi)
+        alarms += [alarm] if alarm is not None else []
+        rep = det.settled(ti, thi)
+        reports += [rep] if rep is not None else []
+    (alarm,) = alarms
+    assert alarm.time_s == pytest.approx(29.0, abs=DT) and alarm.latest_s == pytest.approx(
+        31.0, abs=DT
+    )
+    (rep,) = reports
+    assert rep.report_s == pytest.approx(31.0 + SETTINGS.settle_s, abs=2 * DT)
+    assert str(rep).startswith("payload changed between 29.0 and 31.0 s (joint at rest")
+    assert rep.after == pytest.approx(NEW[:2], rel=0.01)
+
+
 def test_row_with_one_joint_leaves_the_other_cusum_unchanged():
     s = 0.5
     det = detector(holdoff_s=1.0, reference_s=1.0)

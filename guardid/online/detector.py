@@ -16,16 +16,20 @@ long memory has moved. Per estimator:
 
    [sigma x rows]; residuals within +-``kappa`` sigma never accumulate, a bias of m sigma
    reaches the alarm ``h`` after about h / (m - kappa) rows. At the alarm the change time
-   is the CUSUM change-point estimate: the last row before the alarm at which that G was
-   zero. The caller (:class:`guardid.online.OnlineIdentifier`) then discards the
-   estimator's information on the changed parameters and replays the rows since that time.
+   is the CUSUM change-point estimate: the last row of that joint before the alarm at which
+   that G was zero. When the joint had no rows for a while (held near stiction: a robot
+   often picks a load up at rest) the change lies somewhere in that gap, so the alarm also
+   gives the first row of the joint after it, and the report names the interval. The
+   caller (:class:`guardid.online.OnlineIdentifier`) then discards the estimator's
+   information on the changed parameters and replays the rows since that time.
 4. **Settling**: the new values are the mean of the watched estimates over the last
-   ``new_s`` before ``settle_s`` after the change time. They are reported when some watched
-   estimate moved beyond its uncertainty: by more than ``n_sigma`` x its spread in the
-   reference window and more than ``rel_floor`` x its old value. Either way the detector
-   then re-arms at once with the residual scales it had (a payload hardly changes the
-   noise) while it learns a fresh reference over the next ``reference_s``, which then
-   replaces them: a later change is caught from ``settle_s`` after the last one on.
+   ``new_s`` before ``settle_s`` after the change time (after the end of the gap, if any).
+   They are reported when some watched estimate moved beyond its uncertainty: by more than
+   ``n_sigma`` x its spread in the reference window and more than ``rel_floor`` x its old
+   value. Either way the detector then re-arms at once with the residual scales it had (a
+   payload hardly changes the noise) while it learns a fresh reference over the next
+   ``reference_s``, which then replaces them: a later change is caught from ``settle_s``
+   after the last one on.
 
 Times are those of the rows, i.e. the instants of the motion they describe (the tracker
 removes its conditioning and guard delays), not the arrival times.
@@ -61,11 +65,17 @@ class DetectorSettings:
     rel_floor: float = 0.03
 
 
+GAP_S = 0.25
+"""A change whose joint had no rows for longer than this [s] is reported as an interval."""
+
+
 @dataclass(frozen=True)
 class ChangeReport:
-    """A detected change: ``time_s`` [s] change time, ``alarm_s`` when the CUSUM fired,
-    ``report_s`` when the new values were taken; ``before``/``after`` of ``names`` (SI units
-    ``units``); ``sigma`` the watched estimates' spread in the reference window."""
+    """A detected change: ``time_s`` [s] change time (the earliest it can have been),
+    ``latest_s`` [s] the latest (the first row of the alarmed joint after it), ``alarm_s``
+    when the CUSUM fired, ``report_s`` when the new values were taken; ``before``/``after``
+    of ``names`` (SI units ``units``); ``sigma`` the watched estimates' spread in the
+    reference window."""
 
     method: str
     time_s: float
@@ -76,23 +86,31 @@ class ChangeReport:
     after: np.ndarray
     sigma: np.ndarray
     units: tuple[str, ...]
+    latest_s: float | None = None
 
     def __str__(self) -> str:
         vals = ", ".join(
             f"{n} {b:.4g} -> {a:.4g}{' ' + u if u else ''}"
             for n, b, a, u in zip(self.names, self.before, self.after, self.units, strict=True)
         )
-        return f"payload changed at {self.time_s:.1f} s ({self.method.upper()}): {vals}"
+        latest = self.time_s if self.latest_s is None else self.latest_s
+        if latest - self.time_s > GAP_S:
+            when = f"between {self.time_s:.1f} and {latest:.1f} s (joint at rest in between)"
+        else:
+            when = f"at {self.time_s:.1f} s"
+        return f"payload changed {when} ({self.method.upper()}): {vals}"
 
 
 @dataclass(frozen=True)
 class Alarm:
-    """The CUSUM fired at ``alarm_s`` [s]; the change happened at ``time_s`` [s];
-    ``theta_before`` (b,) is the estimate fed to the last row before the change time."""
+    """The CUSUM fired at ``alarm_s`` [s]; the change happened at ``time_s`` [s] at the
+    earliest and ``latest_s`` [s] at the latest; ``theta_before`` (b,) is the estimate fed
+    to the last row before the change time."""
 
     time_s: float
     alarm_s: float
     theta_before: np.ndarray
+    latest_s: float | None = None
 
 
 class ChangeDetector:
@@ -165,7 +183,7 @@ class ChangeDetector:
         self._new.append((t, np.asarray(theta, dtype=float)[self.index]))
         while self._new and self._new[0][0] < t - s.new_s:
             self._new.popleft()
-        if t - self.onset < s.settle_s:
+        if t - self.settle_from < s.settle_s:
             return None
         after = np.mean([x for _, x in self._new], axis=0)
         alarm = self.alarms[-1]
@@ -185,6 +203,7 @@ class ChangeDetector:
             after=after,
             sigma=self.spread.copy(),
             units=self.units,
+            latest_s=alarm.latest_s,
         )
         self.reports.append(rep)
         return rep
@@ -219,7 +238,8 @@ class ChangeDetector:
         if not refresh:
             self._set_reference()
         self._g = np.zeros((2, self.n))
-        self._zero_t = np.full((2, self.n), t)
+        self._zero_t = np.full((2, self.n), t)  # last row of the joint with G = 0
+        self._rise_t = np.full((2, self.n), t)  # the joint's first row after that
         self.state = "armed"
 
     def _cusum(self, t: float, rows, residual) -> Alarm | None:
@@ -227,18 +247,24 @@ class ChangeDetector:
         z = np.zeros(self.n)
         z[rows] = np.asarray(residual, dtype=float) / self.sigma[rows]
         g = self._g
+        was_zero = g <= 0.0
         g[0, rows] = np.maximum(0.0, g[0, rows] + z[rows] - s.kappa)
         g[1, rows] = np.maximum(0.0, g[1, rows] - z[rows] - s.kappa)
-        self._zero_t[g <= 0.0] = t
+        present = np.broadcast_to(rows, g.shape)
+        self._zero_t[present & (g <= 0.0)] = t
+        self._rise_t[present & was_zero & (g > 0.0)] = t
         fired = g > s.h
         if not fired.any():
             return None
-        onset = float(np.min(self._zero_t[fired]))
+        first = np.argmin(np.where(fired, self._zero_t, np.inf))
+        onset = float(self._zero_t.flat[first])
         before = [x for tt, x in self._recent if tt < onset] or [self._recent[0][1]]
-        alarm = Alarm(onset, t, before[-1])
+        alarm = Alarm(onset, t, before[-1], latest_s=float(self._rise_t.flat[first]))
         self.alarms.append(alarm)
         self.before = alarm.theta_before[self.index]
         self.onset = onset
+        #: the estimates can learn the change only once its joint moves again
+        self.settle_from = alarm.latest_s
         self._new: deque = deque()
         self.state = "settling"
         return alarm
