@@ -79,7 +79,7 @@ def bench(name: str, args, payload: PayloadChange, tmp: Path) -> None:
                 for x in GRAVITY
             ]
             settle[m].append(st)
-            rep = [r.time_s - t_change for r in tracker.reports if r.method == m]
+            rep = [r.at_s - t_change for r in tracker.reports if r.method == m]
             errors += rep[:1]
             parts.append(f"{m} {st[0]:.2f} / {st[1]:.2f} s, report {rep[0]:+.2f} s"
                          if rep else f"{m} {st[0]:.2f} / {st[1]:.2f} s, NO REPORT")  # fmt: skip

@@ -214,7 +214,7 @@ def test_current_sensor_effort_tracks_the_payload_too(runs):
                         echo=lambda s: None, effort="current")  # fmt: skip
     t_change = change_time_in_log(runs["pay"])
     assert len(tracker.reports) == 2
-    assert all(abs(r.time_s - t_change) <= 1.0 for r in tracker.reports)
+    assert all(abs(r.at_s - t_change) <= 1.0 for r in tracker.reports)
     new = base_truth(PAYLOAD)
     for m, tr in tracker.tracks().items():
         assert settle_times(tr, tracker.names, new, t_change)[0] < 1.0, m
@@ -239,7 +239,7 @@ def test_a_second_change_eight_seconds_later_is_caught_too():
         # the tilt is at rest from 24.1 s to 25.2 s: the pick-up is reported as that interval
         assert first.time_s <= pick.time <= first.latest_s < first.time_s + 2.0
         assert "between" in str(first) and "joint at rest" in str(first)
-        assert abs(second.time_s - drop.time) <= 1.0 and "changed at" in str(second)
+        assert abs(second.at_s - drop.time) <= 1.0 and "changed at" in str(second)
         assert first.after[0] == pytest.approx(new["MX2R"], rel=0.05)
         assert second.after[0] == pytest.approx(old["MX2R"], rel=0.05)
         assert tracker.tracks()[m].theta[-1, k] == pytest.approx(old["MX2R"], rel=0.02)

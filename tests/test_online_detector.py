@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from guardid.online import ChangeDetector, DetectorSettings
-from guardid.online.detector import Alarm
+from guardid.online.detector import GAP_S, Alarm
 
 DT = 0.015
 NAMES = ("MX2R", "MY2", "Fv2")
@@ -194,7 +194,24 @@ def test_a_change_while_the_joint_is_at_rest_is_reported_as_the_interval():
     (rep,) = reports
     assert rep.report_s == pytest.approx(31.0 + SETTINGS.settle_s, abs=2 * DT)
     assert str(rep).startswith("payload changed between 29.0 and 31.0 s (joint at rest")
+    assert rep.at_s == pytest.approx(30.0, abs=DT)
     assert rep.after == pytest.approx(NEW[:2], rel=0.01)
+
+
+def test_a_change_in_a_short_gap_is_reported_at_its_middle():
+    """A gap shorter than GAP_S (the stiction guard around a reversal): one time, the middle."""
+    t, residual, theta = make_stream(bias=[(30.2, 31.2, 1, 20.0)], steps=[(30.2, OLD, NEW)])
+    det = detector()
+    for ti, ei, thi in zip(t, residual, theta, strict=True):
+        rows = np.array([True, not 29.9 <= ti < 30.2])
+        det.update(ti, rows, ei[rows], thi)
+        det.settled(ti, thi)
+    (rep,) = det.reports
+    assert rep.latest_s - rep.time_s < GAP_S
+    assert rep.at_s == pytest.approx(30.05, abs=DT)
+    assert str(rep).startswith("payload changed at 30.0 s") or str(rep).startswith(
+        "payload changed at 30.1 s"
+    )
 
 
 def test_row_with_one_joint_leaves_the_other_cusum_unchanged():

@@ -148,7 +148,7 @@ def identify(
 
     tracker = track_log(run, description, methods, lam, beta, log_path=log)
     if tracker is not None and tracker.reports:
-        times = sorted({round(r.time_s, 1) for r in tracker.reports})
+        times = sorted({round(r.at_s, 1) for r in tracker.reports})
         when = ", ".join(f"{t:.1f} s" for t in times)
         click.echo(
             f"warning: {log}: the parameters changed at {when}; the table's batch estimates "

@@ -65,8 +65,9 @@ class DetectorSettings:
     rel_floor: float = 0.03
 
 
-GAP_S = 0.25
-"""A change whose joint had no rows for longer than this [s] is reported as an interval."""
+GAP_S = 0.5
+"""A change whose joint had no rows for longer than this [s] is reported as an interval
+(shorter gaps, e.g. the stiction guard around a velocity reversal, as its middle)."""
 
 
 @dataclass(frozen=True)
@@ -88,6 +89,12 @@ class ChangeReport:
     units: tuple[str, ...]
     latest_s: float | None = None
 
+    @property
+    def at_s(self) -> float:
+        """The change time [s]: the middle of [``time_s``, ``latest_s``]."""
+        latest = self.time_s if self.latest_s is None else max(self.latest_s, self.time_s)
+        return 0.5 * (self.time_s + latest)
+
     def __str__(self) -> str:
         vals = ", ".join(
             f"{n} {b:.4g} -> {a:.4g}{' ' + u if u else ''}"
@@ -97,7 +104,7 @@ class ChangeReport:
         if latest - self.time_s > GAP_S:
             when = f"between {self.time_s:.1f} and {latest:.1f} s (joint at rest in between)"
         else:
-            when = f"at {self.time_s:.1f} s"
+            when = f"at {self.at_s:.1f} s"
         return f"payload changed {when} ({self.method.upper()}): {vals}"
 
 

@@ -366,7 +366,10 @@ class OnlineIdentifier:
             est.discard(self.changing, self.half_widths[self.changing] ** 2, theta=theta)
         else:
             est.discard(self.changing, theta=theta)
-        skip = self._hold_until[method] = alarm.time_s + self.transition_s
+        # the change lies between alarm.time_s and alarm.latest_s (the alarmed joint's gap,
+        # if any): the filter mixes the torques until a transition after the latest
+        latest = alarm.time_s if alarm.latest_s is None else max(alarm.latest_s, alarm.time_s)
+        skip = self._hold_until[method] = latest + self.transition_s
         for tt, A, y in self._rows_buf:
             if tt >= skip:
                 est.update(A, y)
@@ -396,7 +399,7 @@ class OnlineIdentifier:
             parts.append(f"{m.upper()} {vals}")
         text = " | ".join(parts)
         if self.reports:
-            text += f" | change at {self.reports[-1].time_s:.1f} s"
+            text += f" | change at {self.reports[-1].at_s:.1f} s"
         return text
 
     def write_csv(self, path) -> None:
