@@ -10,6 +10,9 @@ import click
 
 from guardid.errors import ConfigError
 
+TRACKING_PERIOD_S = 5.0
+"""--online: excitation periods longer than this [s] get a note on tracking speed."""
+
 
 def _load_trajectory(path: str):
     from guardid.excitation import load_trajectory
@@ -147,10 +150,6 @@ def _progress(c: dict) -> None:
         err=True,
         nl=False,
     )
-
-
-TRACKING_PERIOD_S = 5.0
-"""--online: excitation periods longer than this [s] get a note on tracking speed."""
 
 
 def _tracker(online, description, trajectory, effort):

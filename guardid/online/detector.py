@@ -87,22 +87,20 @@ class ChangeReport:
     after: np.ndarray
     sigma: np.ndarray
     units: tuple[str, ...]
-    latest_s: float | None = None
+    latest_s: float
 
     @property
     def at_s(self) -> float:
         """The change time [s]: the middle of [``time_s``, ``latest_s``]."""
-        latest = self.time_s if self.latest_s is None else max(self.latest_s, self.time_s)
-        return 0.5 * (self.time_s + latest)
+        return 0.5 * (self.time_s + self.latest_s)
 
     def __str__(self) -> str:
         vals = ", ".join(
             f"{n} {b:.4g} -> {a:.4g}{' ' + u if u else ''}"
             for n, b, a, u in zip(self.names, self.before, self.after, self.units, strict=True)
         )
-        latest = self.time_s if self.latest_s is None else self.latest_s
-        if latest - self.time_s > GAP_S:
-            when = f"between {self.time_s:.1f} and {latest:.1f} s (joint at rest in between)"
+        if self.latest_s - self.time_s > GAP_S:
+            when = f"between {self.time_s:.1f} and {self.latest_s:.1f} s (joint at rest in between)"
         else:
             when = f"at {self.at_s:.1f} s"
         return f"payload changed {when} ({self.method.upper()}): {vals}"
@@ -117,7 +115,7 @@ class Alarm:
     time_s: float
     alarm_s: float
     theta_before: np.ndarray
-    latest_s: float | None = None
+    latest_s: float
 
 
 class ChangeDetector:
@@ -269,7 +267,6 @@ class ChangeDetector:
         alarm = Alarm(onset, t, before[-1], latest_s=float(self._rise_t.flat[first]))
         self.alarms.append(alarm)
         self.before = alarm.theta_before[self.index]
-        self.onset = onset
         #: the estimates can learn the change only once its joint moves again
         self.settle_from = alarm.latest_s
         self._new: deque = deque()

@@ -368,8 +368,7 @@ class OnlineIdentifier:
             est.discard(self.changing, theta=theta)
         # the change lies between alarm.time_s and alarm.latest_s (the alarmed joint's gap,
         # if any): the filter mixes the torques until a transition after the latest
-        latest = alarm.time_s if alarm.latest_s is None else max(alarm.latest_s, alarm.time_s)
-        skip = self._hold_until[method] = latest + self.transition_s
+        skip = self._hold_until[method] = alarm.latest_s + self.transition_s
         for tt, A, y in self._rows_buf:
             if tt >= skip:
                 est.update(A, y)
