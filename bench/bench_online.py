@@ -23,7 +23,6 @@ from guardid.capture import capture
 from guardid.cli import main as cli
 from guardid.estimators.metrics import settle_time
 from guardid.excitation import load_trajectory
-from guardid.identify.pipeline import trajectory_highest_harmonic
 from guardid.link import Session, open_port
 from guardid.log import read_log
 from guardid.online import OnlineIdentifier
@@ -44,8 +43,7 @@ def run(seed: int, payload: PayloadChange | None, trajectory, tmp: Path):
     if payload is not None:
         com = ",".join(f"{c:g}" for c in payload.com)
         url += f"&payload_time={payload.time:g}&payload_mass={payload.mass:g}&payload_com={com}"
-    harmonic = trajectory_highest_harmonic(trajectory.to_dict())
-    tracker = OnlineIdentifier(GUARD, ("rls", "hopfield"), highest_harmonic_hz=harmonic)
+    tracker = OnlineIdentifier.for_trajectory(GUARD, ("rls", "hopfield"), trajectory)
     port = open_port(url)
     session = Session(port)
     session.handshake()

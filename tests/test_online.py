@@ -19,7 +19,6 @@ from guardid.cli import main as cli
 from guardid.estimators.metrics import settle_time
 from guardid.excitation import load_trajectory
 from guardid.firmware.emulator import STATUS
-from guardid.identify.pipeline import trajectory_highest_harmonic
 from guardid.identify.runs import load_run
 from guardid.link import Session, open_port
 from guardid.log import read_log
@@ -44,8 +43,7 @@ def live_capture(url, traj_path, seconds, log):
     """Capture ``seconds`` from ``url`` to ``log`` with a live RLS + Hopfield tracker fed by
     the ``on_row`` callback; returns (tracker, capture result)."""
     trajectory = load_trajectory(traj_path)
-    harmonic = trajectory_highest_harmonic(trajectory.to_dict())
-    tracker = OnlineIdentifier(GUARD, ("rls", "hopfield"), highest_harmonic_hz=harmonic)
+    tracker = OnlineIdentifier.for_trajectory(GUARD, ("rls", "hopfield"), trajectory)
     port = open_port(url)
     try:
         session = Session(port)

@@ -156,13 +156,10 @@ def _tracker(online, description, trajectory, effort):
     """The :class:`guardid.online.OnlineIdentifier` asked for by --online, or None."""
     if not online:
         return None
-    from guardid.identify.pipeline import trajectory_highest_harmonic
     from guardid.online import OnlineIdentifier
 
     methods = tuple(m.strip() for m in online.split(",") if m.strip())
-    to_dict = getattr(trajectory, "to_dict", None)
-    harmonic = trajectory_highest_harmonic(to_dict() if to_dict else None)
-    return OnlineIdentifier(description, methods, highest_harmonic_hz=harmonic, effort=effort)
+    return OnlineIdentifier.for_trajectory(description, methods, trajectory, effort=effort)
 
 
 def _progress_with(tracker):

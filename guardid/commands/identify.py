@@ -62,15 +62,11 @@ def _load(log, robot_opt, columns, sample_period, mat_var, mat_columns):
 
 def _highest_harmonic(log, run):
     """The excitation's highest frequency [Hz] from a guardid log's header, or None."""
-    from guardid.identify.pipeline import trajectory_highest_harmonic
-    from guardid.log import read_log
+    from guardid.online.offline import log_highest_harmonic
 
     if run.ticks is None or getattr(run, "torque", False) or str(log).lower().endswith(".mat"):
         return None
-    try:
-        return trajectory_highest_harmonic(read_log(log).header.get("trajectory"))
-    except Exception:  # a foreign layout: no guardid header, the spectrum rule applies
-        return None
+    return log_highest_harmonic(log)  # None for a foreign layout: the spectrum rule applies
 
 
 def _load_all(logs, robot_opt, foreign):

@@ -230,6 +230,16 @@ class OnlineIdentifier:
         self._flags = np.zeros((size, n), dtype=bool)
         self._pending: deque = deque()
 
+    @classmethod
+    def for_trajectory(cls, description, methods, trajectory, **kwargs) -> OnlineIdentifier:
+        """The tracker for a capture along ``trajectory`` (:mod:`guardid.excitation`): the
+        cut-off follows its highest harmonic (the default one if it has none)."""
+        from guardid.identify.pipeline import trajectory_highest_harmonic
+
+        to_dict = getattr(trajectory, "to_dict", None)
+        harmonic = trajectory_highest_harmonic(to_dict() if to_dict else None)
+        return cls(description, methods, highest_harmonic_hz=harmonic, **kwargs)
+
     # -- set-up ---------------------------------------------------------------------------
     def _make(self, method, p0):
         if method == "rls":
