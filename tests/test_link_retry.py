@@ -23,8 +23,7 @@ from guardid.capture import capture
 from guardid.cli import main
 from guardid.errors import LinkError
 from guardid.firmware import FirmwareEmulator
-from guardid.link import Session, open_port
-from guardid.link.session import RetryPolicy
+from guardid.link import RetryPolicy, Session, open_port
 from guardid.log import read_log
 from guardid.protocol import ENUMS, MESSAGES, Encoder, FrameParser, decode
 from guardid.robot import load_robot

@@ -21,9 +21,10 @@ arithmetic; tests/test_firmware_c.py holds both to identical bytes.
 
 Host frames are handled as they arrive (between ticks). A frame equal to the previous host
 frame (same id, sequence number and payload: the host retrying a command whose ACK was lost)
-that was answered by ACK or NAK gets that answer again and is not applied again. Unlike the hardware, the emulator
-sends no INFO at reset: nothing is sent before the host talks, since opening a pty flushes
-its input and the unsolicited frame would only show up as a sequence gap.
+that was answered by ACK or NAK gets that answer again and is not applied again. Unlike
+the hardware, the emulator sends no INFO at reset: nothing is sent before the host talks,
+since opening a pty flushes its input and the unsolicited frame would only show up as a
+sequence gap.
 """
 
 from __future__ import annotations
