@@ -434,6 +434,34 @@ def test_damaged_and_split_frames_are_handled_alike():
     t.step(3)
 
 
+def test_repeated_frames_are_answered_again_and_not_applied_alike():
+    """A retry (the same frame again) gets the same ACK/NAK and changes nothing; the same
+    seq with other content is a new command (tests/test_link_retry.py: the rule itself)."""
+    t = Twin(real_plant(10))
+    enc = Encoder(40)
+    go = enc.encode(M["SET_MODE"](MODE["position"]))
+    assert _acks(t.send(go)) == _acks(t.send(go)) == [M["SET_MODE"].MSG_ID]
+    t.step(17)  # silent: the watchdog trips
+    assert _acks(t.send(go)) == [M["SET_MODE"].MSG_ID]
+    assert t.py.mode == MODE["idle"] and t.py.watchdog_tripped  # the repeat changed nothing
+    bad = enc.encode(M["SET_PID"](5, 1, 1, 1))
+    assert _naks(t.send(bad)) == _naks(t.send(bad)) == [ERR["bad_joint"]]
+    stop = enc.encode(M["ESTOP"]())
+    assert [type(f) for f in t.send(stop)] == [M["ACK"], M["FAULT"]]
+    assert [type(f) for f in t.send(stop)] == [M["ACK"]]
+    t.send(Encoder(50).encode(M["CLEAR_ESTOP"]()))
+    assert not t.py.estop
+    t.send(Encoder(50).encode(M["SET_MODE"](MODE["voltage"])))  # same seq, other content
+    assert t.py.mode == MODE["voltage"]
+    t.send(Encoder(50).encode(M["SET_MODE"](MODE["idle"])))  # same seq and id, other mode
+    assert t.py.mode == MODE["idle"]
+    ping = enc.encode(M["PING"](3))
+    assert [f.tick for f in t.send(ping) + t.step(1) + t.send(ping) if type(f) is M["PONG"]] == [
+        17,
+        18,
+    ]
+
+
 def test_serial_tick_arithmetic_across_the_u32_wrap():
     t = Twin(real_plant(9))
     t.set_tick(2**32 - 6)

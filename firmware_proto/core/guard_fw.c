@@ -272,6 +272,7 @@ static void send_ack(gf_fw_t *fw, const gp_frame_t *f)
     uint8_t p[GP_ACK_FIXED_SIZE];
     m.ack_seq = f->seq;
     m.ack_id = f->msg_id;
+    fw->last_reply = GF_REPLY_ACK;
     send(fw, GP_MSG_ACK, p, gp_pack_ack(&m, p));
 }
 
@@ -282,6 +283,8 @@ static void send_nak(gf_fw_t *fw, const gp_frame_t *f, uint8_t error)
     m.ack_seq = f->seq;
     m.ack_id = f->msg_id;
     m.error = error;
+    fw->last_reply = GF_REPLY_NAK;
+    fw->last_error = error;
     send(fw, GP_MSG_NAK, p, gp_pack_nak(&m, p));
 }
 
@@ -477,9 +480,32 @@ static void on_set_voltage(gf_fw_t *fw, const gp_frame_t *f)
         fw->voltage_cmd_mv[j] = m.voltage[j];
 }
 
+/* A repeat of the previous host frame that was answered by ACK/NAK: answer it again. */
+static int resend_reply(gf_fw_t *fw, const gp_frame_t *f)
+{
+    /* the frame's CRC follows its payload in the parser's buffer (header | payload | crc) */
+    uint32_t crc = gp_get_u32(f->payload + f->payload_len);
+    if (fw->have_last && fw->last_reply != GF_REPLY_NONE && f->msg_id == fw->last_id &&
+        f->seq == fw->last_seq && crc == fw->last_crc) {
+        if (fw->last_reply == GF_REPLY_ACK)
+            send_ack(fw, f);
+        else
+            send_nak(fw, f, fw->last_error);
+        return 1;
+    }
+    fw->have_last = 1u;
+    fw->last_id = f->msg_id;
+    fw->last_seq = f->seq;
+    fw->last_crc = crc;
+    fw->last_reply = GF_REPLY_NONE;
+    return 0;
+}
+
 static void handle(gf_fw_t *fw, const gp_frame_t *f)
 {
     fw->last_host_tick = fw->tick; /* any valid frame feeds the watchdog */
+    if (resend_reply(fw, f))
+        return;
     switch (f->msg_id) {
     case GP_MSG_HELLO:
         send_info(fw);

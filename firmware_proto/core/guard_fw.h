@@ -107,7 +107,21 @@ typedef struct {
     uint8_t estop;
     uint8_t watchdog_tripped;
     uint8_t setpoint_hold;
+    /* The previous host frame (id, seq, CRC) and its answer: an identical frame that follows
+       it (the host retrying a command whose ACK was lost) gets the same ACK/NAK again and is
+       not applied again. */
+    uint32_t last_crc;
+    uint16_t last_seq;
+    uint8_t last_id;
+    uint8_t have_last;
+    uint8_t last_reply; /* GF_REPLY_* */
+    uint8_t last_error; /* NAK error code when last_reply is GF_REPLY_NAK */
 } gf_fw_t;
+
+/* gf_fw_t.last_reply */
+#define GF_REPLY_NONE 0u
+#define GF_REPLY_ACK 1u
+#define GF_REPLY_NAK 2u
 
 /* Errors of gf_init. */
 #define GF_OK 0

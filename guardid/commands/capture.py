@@ -34,7 +34,8 @@ def _load_trajectory(path: str):
     type=float,
     default=1.0,
     show_default=True,
-    help="Longest wait for an answer from the robot [s].",
+    help="Longest wait for an answer or a telemetry frame [s]; unanswered commands are "
+    "sent again, up to 5 times.",
 )
 @click.option("-o", "--output", required=True, help="Log file to write (CSV).")
 @click.option("--quiet", is_flag=True, help="No progress display.")

@@ -19,9 +19,12 @@ timing rules require. The portable C core (``firmware_proto/core``, in the loop 
 :mod:`guardid.firmware.c_core`) implements the same state machine with the same integer
 arithmetic; tests/test_firmware_c.py holds both to identical bytes.
 
-Host frames are handled as they arrive (between ticks). Unlike the hardware, the emulator
-sends no INFO at reset: nothing is sent before the host talks, since opening a pty flushes
-its input and the unsolicited frame would only show up as a sequence gap.
+Host frames are handled as they arrive (between ticks). A frame equal to the previous host
+frame (same id, sequence number and payload: the host retrying a command whose ACK was lost)
+that was answered by ACK or NAK gets that answer again and is not applied again. Unlike
+the hardware, the emulator sends no INFO at reset: nothing is sent before the host talks,
+since opening a pty flushes its input and the unsolicited frame would only show up as a
+sequence gap.
 """
 
 from __future__ import annotations
@@ -95,6 +98,8 @@ class FirmwareEmulator:
 
         self.parser = FrameParser()
         self.encoder = Encoder()
+        self._last_frame = None  # (msg_id, seq, message) of the previous host frame
+        self._last_reply = None  # its ACK/NAK, resent if the same frame comes again
         self._out = bytearray()
         self.tick = 0
         self.mode = MODE["idle"]
@@ -124,6 +129,11 @@ class FirmwareEmulator:
         """Handle every whole valid frame in ``data`` (partial frames wait for more)."""
         for frame in self.parser.feed(data):
             self.last_host_tick = self.tick
+            key = (frame.msg_id, frame.seq, frame.msg)
+            if key == self._last_frame and self._last_reply is not None:
+                self._send(self._last_reply)  # a retry: answer again, change nothing
+                continue
+            self._last_frame, self._last_reply = key, None
             handler = self._HANDLERS.get(type(frame.msg).__name__)
             if handler is not None:
                 handler(self, frame)
@@ -132,10 +142,12 @@ class FirmwareEmulator:
         self._out += self.encoder.encode(msg)
 
     def _ack(self, frame) -> None:
-        self._send(M["ACK"](frame.seq, frame.msg_id))
+        self._last_reply = M["ACK"](frame.seq, frame.msg_id)
+        self._send(self._last_reply)
 
     def _nak(self, frame, error: str) -> None:
-        self._send(M["NAK"](frame.seq, frame.msg_id, ERR[error]))
+        self._last_reply = M["NAK"](frame.seq, frame.msg_id, ERR[error])
+        self._send(self._last_reply)
 
     def _on_hello(self, frame) -> None:
         caps = sum(

@@ -1,6 +1,6 @@
 """Host side of the serial link: opening ports, the protocol session, setpoint streaming."""
 
 from guardid.link.port import open_port
-from guardid.link.session import Session, Telemetry
+from guardid.link.session import RetryPolicy, Session, Telemetry
 
-__all__ = ["Session", "Telemetry", "open_port"]
+__all__ = ["RetryPolicy", "Session", "Telemetry", "open_port"]

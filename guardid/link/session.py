@@ -1,8 +1,11 @@
 """A protocol session with the microcontroller: handshake, commands, setpoint streaming.
 
-Every command that the firmware acknowledges is sent with :meth:`Session.request`, which
-waits for the ACK/NAK carrying its sequence number (or the answer message) and keeps any
-telemetry that arrives meanwhile. Times on the robot come from its tick counter, never
+Every command that gets an answer (HELLO -> INFO, PING -> PONG, the rest -> ACK/NAK carrying
+its sequence number) is sent with :meth:`Session.command`: when no answer comes within a
+wait, the SAME frame (same sequence number) is sent again, a bounded number of times with
+growing waits (:class:`RetryPolicy`); the firmware answers a repeated frame again without
+applying it again. Telemetry arriving meanwhile is kept. Streamed setpoints and voltages
+are not answered and never resent. Times on the robot come from its tick counter, never
 from host arrival times (USB adapters deliver frames bunched).
 """
 
@@ -36,23 +39,53 @@ class Telemetry:
     setpoint_counts: tuple[int, ...]
 
 
+@dataclass(frozen=True)
+class RetryPolicy:
+    """How a command without an answer is sent again.
+
+    At most ``attempts`` sends of the same frame; after send ``k`` (from 0) the host waits
+    ``min(first_wait_s * backoff**k, max_wait_s)`` seconds [s] for the answer. The defaults
+    (0.1, 0.2, 0.4, 0.8, 1.0 s with a 1 s ``max_wait_s``) ride out a lost reply within 0.1 s
+    on a link whose replies take a tick (15 ms) plus a USB latency timer (16 ms).
+    """
+
+    attempts: int = 5
+    first_wait_s: float = 0.1
+    backoff: float = 2.0
+    max_wait_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.attempts < 1 or self.first_wait_s <= 0 or self.backoff < 1 or self.max_wait_s <= 0:
+            raise ValueError(f"invalid retry policy {self}")
+
+    def waits_s(self) -> list[float]:
+        """The wait after each send [s]."""
+        return [
+            min(self.first_wait_s * self.backoff**k, self.max_wait_s) for k in range(self.attempts)
+        ]
+
+
 class Session:
     """The host end of the protocol over an open pyserial port.
 
-    ``timeout_s`` bounds each wait for an answer (simulated time on a lock-step ``sim://``
-    port). ``stats`` is the parser's error counters; ``telemetry`` queues frames received
+    ``timeout_s`` bounds each wait for an answer or a telemetry frame (simulated time on a
+    lock-step ``sim://`` port); ``retry`` says how unanswered commands are resent (default:
+    :class:`RetryPolicy` with ``max_wait_s = timeout_s``). ``stats`` is the parser's error
+    counters; ``resends`` counts commands sent again; ``telemetry`` queues frames received
     while waiting for answers; ``faults`` collects FAULT messages.
     """
 
-    def __init__(self, port, timeout_s: float = 1.0) -> None:
+    def __init__(self, port, timeout_s: float = 1.0, retry: RetryPolicy | None = None) -> None:
         self.port = port
         self.name = getattr(port, "portstr", None) or getattr(port, "name", "port")
         self.timeout_s = timeout_s
+        self.retry = retry or RetryPolicy(first_wait_s=min(0.1, timeout_s), max_wait_s=timeout_s)
         self.parser = FrameParser()
         self.encoder = Encoder()
         self.telemetry: deque[Telemetry] = deque()
         self.faults: list = []
         self.info = None
+        self.resends = 0
 
     @property
     def stats(self):
@@ -61,13 +94,16 @@ class Session:
 
     # ------------------------------------------------------------------ bytes
     def send(self, msg) -> int:
-        """Send ``msg``; return its sequence number."""
+        """Send ``msg`` once; return its sequence number."""
         seq = self.encoder.seq
+        self._write(self.encoder.encode(msg))
+        return seq
+
+    def _write(self, frame: bytes) -> None:
         try:
-            self.port.write(self.encoder.encode(msg))
+            self.port.write(frame)
         except (serial.SerialException, OSError) as exc:
             raise LinkError(f"port {self.name}: write failed: {exc}") from None
-        return seq
 
     def poll(self) -> list:
         """Read what is available (waiting up to the port's timeout); return the frames."""
@@ -94,16 +130,34 @@ class Session:
                 others.append(f)
         return others
 
-    def _wait(self, match: Callable, what: str):
-        deadline = self._clock() + self.timeout_s
+    def _wait(self, match: Callable, wait_s: float):
+        """The first frame ``match`` accepts within ``wait_s`` [s], else None."""
+        deadline = self._clock() + wait_s
         while True:
             for frame in self.poll():
                 if match(frame):
                     return frame
             if self._clock() >= deadline:
-                raise LinkError(
-                    f"port {self.name}: no answer to {what} within {self.timeout_s:g} s"
-                )
+                return None
+
+    def command(self, msg, match: Callable):
+        """Send ``msg`` and return the first frame ``match(frame, seq)`` accepts, resending
+        the same frame (same ``seq``) per :attr:`retry`; :class:`LinkError` naming the
+        command and the port when no answer comes after the last attempt."""
+        seq = self.encoder.seq
+        frame = self.encoder.encode(msg)
+        waits = self.retry.waits_s()
+        for attempt, wait_s in enumerate(waits):
+            if attempt:
+                self.resends += 1
+            self._write(frame)
+            answer = self._wait(lambda f: match(f, seq), wait_s)
+            if answer is not None:
+                return answer
+        raise LinkError(
+            f"port {self.name}: no answer to {msg.SPEC.name} after {len(waits)} attempts "
+            f"({sum(waits):g} s)"
+        )
 
     def _clock(self) -> float:
         """Seconds: simulated time on a lock-step sim:// port, else the wall clock."""
@@ -112,11 +166,10 @@ class Session:
         return time.monotonic()
 
     def request(self, msg):
-        """Send a command and wait for its ACK (raise :class:`LinkError` on NAK/timeout)."""
-        seq = self.send(msg)
+        """Send a command until its ACK comes (:class:`LinkError` on NAK or no answer)."""
         name = msg.SPEC.name
-        frame = self._wait(
-            lambda f: type(f.msg) in (M["ACK"], M["NAK"]) and f.msg.ack_seq == seq, name
+        frame = self.command(
+            msg, lambda f, seq: type(f.msg) in (M["ACK"], M["NAK"]) and f.msg.ack_seq == seq
         )
         if type(frame.msg) is M["NAK"]:
             err = _ERROR_NAMES.get(frame.msg.error, str(frame.msg.error))
@@ -126,8 +179,7 @@ class Session:
     # ------------------------------------------------------------------ commands
     def handshake(self):
         """HELLO -> INFO; check the protocol version. Returns INFO in SI (dict)."""
-        self.send(M["HELLO"]())
-        frame = self._wait(lambda f: type(f.msg) is M["INFO"], "HELLO")
+        frame = self.command(M["HELLO"](), lambda f, seq: type(f.msg) is M["INFO"])
         info = frame.msg
         if info.protocol_version != PROTOCOL_VERSION:
             raise LinkError(
@@ -137,10 +189,15 @@ class Session:
         self.info = to_si(info)
         return self.info
 
-    def ping(self, nonce: int = 0x1234) -> int:
-        """PING -> PONG; return the robot's current tick."""
-        self.send(M["PING"](nonce))
-        frame = self._wait(lambda f: type(f.msg) is M["PONG"] and f.msg.nonce == nonce, "PING")
+    def ping(self) -> int:
+        """PING -> PONG; return the robot's current tick.
+
+        The nonce is the frame's sequence number, so a late PONG of an earlier PING is
+        never taken for this one's."""
+        nonce = self.encoder.seq
+        frame = self.command(
+            M["PING"](nonce), lambda f, seq: type(f.msg) is M["PONG"] and f.msg.nonce == nonce
+        )
         return frame.msg.tick
 
     def set_pid(self, joint: int, kp: float, ki: float, kd: float) -> None:
