@@ -1,0 +1,107 @@
+"""Ctrl-C (SIGINT) and SIGTERM stop a capture in every phase: the robot is put idle (seen
+on the robot's side) and the log, if the handshake had succeeded, gets its footer.
+
+The signal is sent by the simulated robot itself at a seeded moment: when the k-th host
+frame arrives (the handshake and set-up: HELLO, SET_WATCHDOG, SET_PID, SET_MODE, PING,
+...) or at the k-th tick of motion. In lock-step pacing the robot runs inside the
+capture's reads; in real-time pacing mostly on the port's clock thread, so the signal
+lands wherever the capture happens to be. Assertions are on what the run recorded
+(footer, exit code, commands the robot received), never on elapsed time.
+"""
+
+from __future__ import annotations
+
+import random
+import signal
+
+import pytest
+from capturetools import IDLE, footer_lines, gentle_trajectory, log_fields, parse_rows, witnessed
+from click.testing import CliRunner
+
+from guardid.cli import main
+
+LOCKSTEP_SEEDS = range(12)
+REALTIME_SEEDS = range(6)
+
+
+@pytest.fixture
+def stray_signals():
+    """Signals that reach the test process outside the capture's own handlers (must be
+    none); keeps a stray SIGINT/SIGTERM from ending the test session."""
+    seen = []
+    old = {
+        s: signal.signal(s, lambda n, f: seen.append(n)) for s in (signal.SIGINT, signal.SIGTERM)
+    }
+    yield seen
+    for s, h in old.items():
+        signal.signal(s, h)
+
+
+def _moment(seed: int, realtime: bool):
+    """(trigger, signal, --online or None): the phase cycles with the seed (handshake,
+    set-up, motion, motion with the online estimators), the moment in it is drawn."""
+    rng = random.Random(seed * 7919 + realtime)
+    signum = (signal.SIGINT, signal.SIGTERM)[rng.random() < 0.5]
+    last_tick = 60 if realtime else 400
+    phase = seed % 4
+    trigger = [
+        ("frame", 0),  # HELLO: during the handshake
+        ("frame", rng.randrange(1, 7)),  # SET_WATCHDOG .. first SETPOINTs
+        ("tick", rng.randrange(1, last_tick)),
+        ("tick", rng.randrange(1, last_tick)),
+    ][phase]
+    return trigger, signum, "rls,hopfield" if phase == 3 else None
+
+
+def _run(tmp_path, seed: int, realtime: bool, stray):
+    trigger, signum, online = _moment(seed, realtime)
+    traj = gentle_trajectory(tmp_path / "traj.yaml")
+    log = tmp_path / "run.csv"
+    port = f"sim://guard?seed={seed}" + ("&pacing=realtime" if realtime else "")
+    args = ["capture", "--trajectory", str(traj), "--duration", "20", "--port", port,
+            "-o", str(log), "--quiet"] + (["--online", online] if online else [])  # fmt: skip
+    with witnessed(trigger, signum) as robots:
+        result = CliRunner().invoke(main, args)
+    (robot,) = robots
+    what = f"seed {seed} {trigger} {signal.Signals(signum).name} online={online}"
+    assert result.exception is None or isinstance(result.exception, SystemExit), what
+    assert "Traceback" not in result.output, what
+    assert robot.sent_at is not None, what  # the moment came
+    assert stray == [], what
+    assert result.exit_code == 128 + signum, (what, result.output)
+    # the robot was put idle after the signal, and nothing moved it again
+    assert robot.idled_after_signal(), (what, robot.commands[robot.sent_at :])
+    assert robot.fw.mode == IDLE and not robot.fw.streaming, what
+    if not log.exists():  # stopped before the handshake succeeded: nothing written
+        assert "before the capture started: nothing written" in result.output, what
+        assert not any(c[0] == "SET_MODE" and c[1] != IDLE for c in robot.commands), what
+        return
+    footer = "\n".join(footer_lines(log))
+    assert "ended: interrupted" in footer, (what, footer)
+    assert f"signal: {signal.Signals(signum).name}" in footer, what
+    rows = parse_rows(log, log_fields())
+    assert f"rows: {len(rows)}" in footer, what
+    assert len(rows) < 20 / 0.015, what  # it did stop
+    ticks = [int(r[0]) for r in rows]
+    assert ticks == sorted(set(ticks)), what
+
+
+@pytest.mark.parametrize("seed", LOCKSTEP_SEEDS)
+def test_signal_stops_a_lockstep_capture(tmp_path, seed, stray_signals):
+    _run(tmp_path, seed, False, stray_signals)
+
+
+@pytest.mark.parametrize("seed", REALTIME_SEEDS)
+def test_signal_stops_a_realtime_capture(tmp_path, seed, stray_signals):
+    _run(tmp_path, seed, True, stray_signals)
+
+
+def test_the_seeds_cover_every_phase():
+    """The seeded moments include the handshake, the set-up, motion and --online."""
+    moments = [_moment(s, False) for s in LOCKSTEP_SEEDS] + [
+        _moment(s, True) for s in REALTIME_SEEDS
+    ]
+    assert any(t == ("frame", 0) for t, _, _ in moments)  # HELLO: the handshake
+    assert any(t[0] == "frame" and t[1] > 0 for t, _, _ in moments)
+    assert any(t[0] == "tick" and o for t, _, o in moments)  # moving, estimators running
+    assert {s for _, s, _ in moments} == {signal.SIGINT, signal.SIGTERM}
