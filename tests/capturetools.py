@@ -8,6 +8,8 @@ import os
 from contextlib import contextmanager
 from pathlib import Path
 
+import yaml
+
 from guardid.excitation.sines import SumOfSines
 from guardid.fakeport import register_device_factory
 from guardid.firmware import FirmwareEmulator
@@ -36,7 +38,8 @@ class Witness:
     ``commands``: (name, mode or None, device tick) per host frame, parsed by a parser of
     its own. ``trigger``: ("frame", k) sends ``signum`` to this process when the k-th host
     frame arrives (0 = HELLO), ("tick", k) at the k-th tick after position mode began.
-    ``sent_at``: index into ``commands`` when the signal was sent. ``events`` (a list shared
+    ``sent_at``: index into ``commands`` when the signal was sent, ``sent_tick`` the
+    ticks of motion until then. ``events`` (a list shared
     with the test) gets 'idle' whenever a SET_MODE idle arrives.
     """
 
@@ -47,12 +50,14 @@ class Witness:
         self.commands: list[tuple[str, int | None, int]] = []
         self.trigger, self.signum = trigger, signum
         self.sent_at: int | None = None
+        self.sent_tick: int | None = None  # ticks of motion when the signal was sent
         self.moving_ticks = 0
         self.events = events if events is not None else []
 
     def _fire(self) -> None:
         if self.sent_at is None:
             self.sent_at = len(self.commands)
+            self.sent_tick = self.moving_ticks
             os.kill(os.getpid(), self.signum)
 
     def receive(self, data: bytes) -> None:
@@ -132,6 +137,12 @@ def footer_lines(path: Path) -> list[str]:
             break
         tail.append(line)
     return tail[::-1] if any(x.startswith("# footer:") for x in tail) else []
+
+
+def footer_dict(path: Path) -> dict:
+    """The footer mapping (YAML in the commented lines after the rows), or {}."""
+    lines = footer_lines(path)
+    return yaml.safe_load("\n".join(x[2:] for x in lines))["footer"] if lines else {}
 
 
 def log_fields(n_joints: int = 2) -> int:

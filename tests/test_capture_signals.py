@@ -15,12 +15,15 @@ import random
 import signal
 
 import pytest
-from capturetools import IDLE, footer_lines, gentle_trajectory, log_fields, parse_rows, witnessed
+from capturetools import IDLE, footer_dict, gentle_trajectory, log_fields, parse_rows, witnessed
 from click.testing import CliRunner
 
+from guardid.capture.stop import StopRequest
 from guardid.cli import main
+from guardid.log import LogWriter
 
 LOCKSTEP_SEEDS = range(12)
+SETUP = ("SET_WATCHDOG", "SET_PID", "PING")  # commands of the set-up before motion
 REALTIME_SEEDS = range(6)
 
 
@@ -53,7 +56,28 @@ def _moment(seed: int, realtime: bool):
     return trigger, signum, "rls,hopfield" if phase == 3 else None
 
 
-def _run(tmp_path, seed: int, realtime: bool, stray):
+@pytest.fixture
+def watch(monkeypatch):
+    """Counts the rows the log writer wrote, and notes the count when the capture's
+    signal handler ran."""
+    seen = {"rows": 0, "rows_at_signal": None}
+    request, write_row = StopRequest.request, LogWriter.write_row
+
+    def noted_request(self, *args):
+        if seen["rows_at_signal"] is None:
+            seen["rows_at_signal"] = seen["rows"]
+        request(self, *args)
+
+    def counted_write_row(self, *args):
+        write_row(self, *args)
+        seen["rows"] += 1
+
+    monkeypatch.setattr(StopRequest, "request", noted_request)
+    monkeypatch.setattr(LogWriter, "write_row", counted_write_row)
+    return seen
+
+
+def _run(tmp_path, seed: int, realtime: bool, stray, watch):
     trigger, signum, online = _moment(seed, realtime)
     traj = gentle_trajectory(tmp_path / "traj.yaml")
     log = tmp_path / "run.csv"
@@ -72,28 +96,38 @@ def _run(tmp_path, seed: int, realtime: bool, stray):
     # the robot was put idle after the signal, and nothing moved it again
     assert robot.idled_after_signal(), (what, robot.commands[robot.sent_at :])
     assert robot.fw.mode == IDLE and not robot.fw.streaming, what
+    # and the set-up went no further (setpoints and START_STREAM already queued in the
+    # same step may follow)
+    later = robot.commands[robot.sent_at :]
+    assert not [c for c in later if c[0] in SETUP or c[0] == "SET_MODE" and c[1] != IDLE], what
     if not log.exists():  # stopped before the handshake succeeded: nothing written
         assert "before the capture started: nothing written" in result.output, what
         assert not any(c[0] == "SET_MODE" and c[1] != IDLE for c in robot.commands), what
         return
-    footer = "\n".join(footer_lines(log))
-    assert "ended: interrupted" in footer, (what, footer)
-    assert f"signal: {signal.Signals(signum).name}" in footer, what
+    footer = footer_dict(log)
+    assert footer["ended"] == "interrupted", (what, footer)
+    assert footer["signal"] == signal.Signals(signum).name, what
     rows = parse_rows(log, log_fields())
-    assert f"rows: {len(rows)}" in footer, what
+    assert footer["rows"] == len(rows), what
+    # a clean link: the stop dropped no byte (no half-read frame)
+    link = footer["link"]
+    assert link["crc_errors"] == link["framing_errors"] == link["seq_gaps"] == 0, (what, link)
     assert len(rows) < 20 / 0.015, what  # it did stop
     ticks = [int(r[0]) for r in rows]
     assert ticks == sorted(set(ticks)), what
+    # stopped within one tick's work: at most the row in hand when the handler ran
+    assert watch["rows_at_signal"] is not None, what
+    assert len(rows) - watch["rows_at_signal"] <= 1, (what, len(rows), watch)
 
 
 @pytest.mark.parametrize("seed", LOCKSTEP_SEEDS)
-def test_signal_stops_a_lockstep_capture(tmp_path, seed, stray_signals):
-    _run(tmp_path, seed, False, stray_signals)
+def test_signal_stops_a_lockstep_capture(tmp_path, seed, stray_signals, watch):
+    _run(tmp_path, seed, False, stray_signals, watch)
 
 
 @pytest.mark.parametrize("seed", REALTIME_SEEDS)
-def test_signal_stops_a_realtime_capture(tmp_path, seed, stray_signals):
-    _run(tmp_path, seed, True, stray_signals)
+def test_signal_stops_a_realtime_capture(tmp_path, seed, stray_signals, watch):
+    _run(tmp_path, seed, True, stray_signals, watch)
 
 
 def test_the_seeds_cover_every_phase():

@@ -6,8 +6,9 @@ thread is running. In a capture that may be inside ``with lock:`` of a real-time
 waits forever for its clock thread), or half-way through a simulated tick. So while a
 capture runs, both signals only set :class:`StopRequest`; the capture raises
 :class:`CaptureStopped` at points where stopping is safe: at every tick of the capture
-loop and before every read of the port (:class:`StopAwarePort`), reads that return
-within the port's read timeout (0.1 s) even when the robot is silent.
+loop, before every write to the port and before every read of it that would wait
+(:class:`StopAwarePort`); such reads return within the port's read timeout (0.1 s) even
+when the robot is silent.
 """
 
 from __future__ import annotations
@@ -81,10 +82,13 @@ class StopRequest:
 
 
 class StopAwarePort:
-    """A pyserial port whose ``read`` first checks a :class:`StopRequest`.
+    """A pyserial port that checks a :class:`StopRequest` before every write and before
+    every read that would wait.
 
-    Every other attribute is the wrapped port's. The check comes before any byte is
-    taken, so a stop never splits a frame and no lock is held when it is raised.
+    Every other attribute is the wrapped port's. A read checks only when no byte is
+    waiting: bytes already received are always handed over (a reader may take a frame in
+    two reads, and raising between them would drop the first part). No lock is held
+    when :class:`CaptureStopped` is raised.
     """
 
     def __init__(self, port, stop: StopRequest) -> None:
@@ -92,8 +96,13 @@ class StopAwarePort:
         self._stop = stop
 
     def read(self, size: int = 1) -> bytes:
-        self._stop.check()
+        if self._stop and self._stop.armed and not self._port.in_waiting:
+            self._stop.check()
         return self._port.read(size)
+
+    def write(self, data) -> int:
+        self._stop.check()  # nothing more goes to the robot once a stop is requested
+        return self._port.write(data)
 
     def __getattr__(self, name: str):
         return getattr(self._port, name)
