@@ -11,6 +11,7 @@ lands wherever the capture happens to be. Assertions are on what the run recorde
 
 from __future__ import annotations
 
+import os
 import random
 import signal
 
@@ -20,7 +21,9 @@ from click.testing import CliRunner
 
 from guardid.capture.stop import StopRequest
 from guardid.cli import main
+from guardid.fakeport import register_device_factory
 from guardid.log import LogWriter
+from guardid.protocol import FrameParser
 
 LOCKSTEP_SEEDS = range(12)
 SETUP = ("SET_WATCHDOG", "SET_PID", "PING")  # commands of the set-up before motion
@@ -139,3 +142,56 @@ def test_the_seeds_cover_every_phase():
     assert any(t[0] == "frame" and t[1] > 0 for t, _, _ in moments)
     assert any(t[0] == "tick" and o for t, _, o in moments)  # moving, estimators running
     assert {s for _, s, _ in moments} == {signal.SIGINT, signal.SIGTERM}
+
+
+class SilentRobot:
+    """A device that takes every command and never answers; sends ``signum`` to this
+    process when the first host frame (HELLO) arrives."""
+
+    tick_period_s = 0.015
+
+    def __init__(self, signum: int) -> None:
+        self.signum = signum
+        self.parser = FrameParser()
+        self.commands: list[str] = []
+
+    def receive(self, data: bytes) -> None:
+        for frame in self.parser.feed(data):
+            self.commands.append(frame.msg.SPEC.name)
+            if len(self.commands) == 1:
+                os.kill(os.getpid(), self.signum)
+
+    def advance(self) -> None:
+        pass
+
+    def take_output(self) -> bytes:
+        return b""
+
+    def wants_time(self) -> bool:
+        return False
+
+    def close(self) -> None:
+        pass
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_signal_stops_a_handshake_with_a_silent_robot(tmp_path, signum, stray_signals):
+    """The capture waits for INFO (up to --timeout 30 s of simulated time); the signal
+    ends the wait at once: the run reports the interruption, not the missing answer."""
+    made = []
+    old = register_device_factory(
+        lambda robot, options: made.append(SilentRobot(signum)) or made[-1]
+    )
+    try:
+        res = CliRunner().invoke(
+            main, ["capture", "--trajectory", str(gentle_trajectory(tmp_path / "t.yaml")),
+                   "--port", "sim://guard", "--timeout", "30", "-o", str(tmp_path / "r.csv")],
+        )  # fmt: skip
+    finally:
+        register_device_factory(old)
+    assert res.exit_code == 128 + signum, res.output
+    assert "before the capture started: nothing written" in res.output
+    assert "no answer" not in res.output and not (tmp_path / "r.csv").exists()
+    assert stray_signals == []
+    (robot,) = made
+    assert robot.commands[0] == "HELLO" and "SET_MODE" in robot.commands[1:]  # idle, unanswered
