@@ -229,3 +229,15 @@ def test_dev_full_is_one_line_and_the_robot_stays_idle(tmp_path):
     )  # fmt: skip
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert proc.stderr.startswith("guardid: error: /dev/full") and proc.stderr.count("\n") == 1
+
+
+def test_log_writer_creates_exclusively_unless_told_to_overwrite(tmp_path):
+    from guardid.log import LogWriteError
+
+    log = tmp_path / "run.csv"
+    log.write_text("a recorded log\n")
+    with pytest.raises(LogWriteError, match="run.csv: already exists"):
+        LogWriter(log, ["pan"], {"robot": "guard"})
+    assert log.read_text() == "a recorded log\n"
+    LogWriter(log, ["pan"], {"robot": "guard"}, overwrite=True).close({"ended": "complete"})
+    assert log.read_text().startswith("tick,time_s,counts_pan,")

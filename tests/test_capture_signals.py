@@ -14,6 +14,9 @@ from __future__ import annotations
 import os
 import random
 import signal
+import subprocess
+import sys
+import time
 
 import pytest
 from capturetools import IDLE, footer_dict, gentle_trajectory, log_fields, parse_rows, witnessed
@@ -26,6 +29,7 @@ from guardid.log import LogWriter
 from guardid.protocol import FrameParser
 
 LOCKSTEP_SEEDS = range(12)
+GUARD_S = 120.0  # failure guards only, never the assertion
 SETUP = ("SET_WATCHDOG", "SET_PID", "PING")  # commands of the set-up before motion
 REALTIME_SEEDS = range(6)
 
@@ -195,3 +199,32 @@ def test_signal_stops_a_handshake_with_a_silent_robot(tmp_path, signum, stray_si
     assert stray_signals == []
     (robot,) = made
     assert robot.commands[0] == "HELLO" and "SET_MODE" in robot.commands[1:]  # idle, unanswered
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_signal_stops_a_capture_process_that_inherited_sigint_ignored(tmp_path, signum):
+    """The root cause of the flaky SIGINT test: a process started from a background job
+    (a non-interactive shell's `cmd &`, and so pytest run that way and its children)
+    inherits SIGINT ignored, and Python then installs no KeyboardInterrupt at all. The
+    capture installs its own handlers, so the signal stops it whatever it inherited."""
+    log = tmp_path / "run.csv"
+    traj = gentle_trajectory(tmp_path / "t.yaml")
+    cmd = [sys.executable, "-m", "guardid", "capture", "--trajectory", str(traj),
+           "--duration", "60", "--port", "sim://guard?pacing=realtime", "-o", str(log)]  # fmt: skip
+    proc = subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN),
+    )  # fmt: skip
+    deadline = time.monotonic() + GUARD_S  # failure guard only
+    while time.monotonic() < deadline and proc.poll() is None:
+        if log.exists() and len(parse_rows(log, log_fields())) >= 20:
+            break
+        time.sleep(0.02)
+    proc.send_signal(signum)
+    out, err = proc.communicate(timeout=GUARD_S)
+    assert proc.returncode == 128 + signum, err
+    assert "Traceback" not in err
+    footer = footer_dict(log)
+    assert footer["ended"] == "interrupted" and footer["signal"] == signal.Signals(signum).name
+    assert footer["rows"] == len(parse_rows(log, log_fields())) >= 20
+    assert out.startswith("interrupted: ")
