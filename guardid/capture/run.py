@@ -9,6 +9,7 @@ its footer.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from collections.abc import Callable
@@ -39,9 +40,6 @@ class CaptureResult:
     @property
     def lost_rows(self) -> int:
         return self.ticks_expected - self.rows
-
-
-_counts_per_rad = counts_per_rad  # older name
 
 
 def setpoint_counts(trajectory, description, n_ticks: int) -> np.ndarray:
@@ -99,8 +97,6 @@ def capture(
             if joint.pid is not None:
                 session.set_pid(j, joint.pid.kp, joint.pid.ki, joint.pid.kd)
         for index, t in session.track(rows):
-            if stop is not None:
-                stop.check()
             if not 0 <= index < n_ticks:
                 continue  # before the trajectory, or a tick past its end
             if first_tick is None:
@@ -120,6 +116,8 @@ def capture(
             if progress is not None and (now >= next_report or index == n_ticks - 1):
                 next_report = now + PROGRESS_EVERY_S
                 progress(_counters(session, writer.rows, index + 1, sq_err, n_err))
+            if stop is not None:
+                stop.check()  # after this tick's row is written, before the next tick
         _idle(session, stop)
     except (CaptureStopped, KeyboardInterrupt) as exc:
         ended = "interrupted"
@@ -141,6 +139,12 @@ def capture(
         except LogWriteError:
             footer = "no footer"
         raise LogWriteError(f"{exc} ({footer}; the robot was put idle)") from None
+    except BaseException as exc:  # anything else: the motors first, the file after
+        _idle(session, stop)
+        with contextlib.suppress(LogWriteError):
+            ended = f"error: {type(exc).__name__}: {exc}"
+            writer.close(_footer(session, writer.rows, n_ticks, ended, started))
+        raise
     writer.close(_footer(session, writer.rows, n_ticks, ended, started))
     return _result(session, writer, n_ticks, sq_err, n_err, ended)
 
