@@ -48,7 +48,7 @@ def run(seed: int, payload: PayloadChange | None, trajectory, tmp: Path):
     session = Session(port)
     session.handshake()
     log = tmp / f"{seed}.csv"
-    capture(session, GUARD, trajectory, 60.0, log, {"robot": "guard"},
+    capture(session, GUARD, trajectory, 60.0, log, {"robot": "guard"}, overwrite=True,
             on_row=lambda t, q, v, i: tracker.update(t, q, i, v))  # fmt: skip
     port.close()
     # the log's time axis starts at its first tick

@@ -2,12 +2,14 @@
 
 The robot's PID gains come from the robot description; setpoints (joint angles of the
 trajectory at each tick) are streamed ahead of their tick; every telemetry frame becomes
-one log row at once. Whatever ends the run (the trajectory's end, Ctrl-C, a vanished
-port) the robot is put idle when possible and the log gets its footer.
+one log row at once. Whatever ends the run (the trajectory's end, Ctrl-C or SIGTERM, a
+vanished port, a full disk) the robot is put idle first when possible, then the log gets
+its footer.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from collections.abc import Callable
@@ -15,9 +17,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from guardid.capture.checks import counts_per_rad
+from guardid.capture.stop import CaptureStopped, StopRequest
 from guardid.errors import LinkError
 from guardid.link import Session
-from guardid.log import LogWriter
+from guardid.log import LogWriteError, LogWriter
 
 PROGRESS_EVERY_S = 0.25  #: wall-clock interval of progress reports [s]
 
@@ -38,16 +42,10 @@ class CaptureResult:
         return self.ticks_expected - self.rows
 
 
-def _counts_per_rad(description) -> np.ndarray:
-    return np.array(
-        [j.encoder.counts_per_rev * j.drive.gear_ratio / (2 * math.pi) for j in description.joints]
-    )
-
-
 def setpoint_counts(trajectory, description, n_ticks: int) -> np.ndarray:
     """(n_ticks, n) integer setpoints [counts] of the trajectory at t = k * sample period."""
     t = np.arange(n_ticks) * description.sample_period
-    return np.rint(trajectory.positions(t) * _counts_per_rad(description)).astype(np.int64)
+    return np.rint(trajectory.positions(t) * counts_per_rad(description)).astype(np.int64)
 
 
 def capture(
@@ -59,27 +57,39 @@ def capture(
     header: dict,
     progress: Callable[[dict], None] | None = None,
     on_row: Callable[[float, np.ndarray, np.ndarray, np.ndarray], None] | None = None,
+    stop: StopRequest | None = None,
+    overwrite: bool = False,
 ) -> CaptureResult:
     """Capture ``duration_s`` seconds of ``trajectory``; write ``log_path``.
 
+    The trajectory must have been checked against the description
+    (:func:`guardid.capture.checks.check_trajectory`) and the session's handshake done.
     ``progress`` (if given) is called every PROGRESS_EVERY_S of wall-clock time with a dict of
     counters (rows, lost, crc_errors, framing_errors, tracking error [rad]).
     ``on_row`` (if given) is called with every logged row as it arrives: time [s], joint
     angles (n,) [rad], period-mean motor voltages (n,) [V] and currents (n,) [A] (online
     identification, :mod:`guardid.online`); it runs in the capture loop, so it must be fast.
-    Raises :class:`LinkError` after closing the log when the link fails.
+    ``stop`` (if given) is checked at every tick: once set, the capture ends as
+    'interrupted' (the robot idle, the footer written). ``overwrite`` False refuses an
+    existing ``log_path``. Raises :class:`LinkError` after closing the log when the link
+    fails, :class:`LogWriteError` (after putting the robot idle) when the log cannot be
+    written; the rows written until then stay in the file.
     """
     period = description.sample_period
     n_ticks = int(round(duration_s / period))
     rows = setpoint_counts(trajectory, description, n_ticks)
-    per_rad = _counts_per_rad(description)
+    per_rad = counts_per_rad(description)
     names = [j.name for j in description.joints]
-    writer = LogWriter(log_path, names, header)
+    started = time.monotonic()
+    try:
+        writer = LogWriter(log_path, names, header, overwrite=overwrite)
+    except LogWriteError:
+        _idle(session, stop)  # nothing moved yet; leave the robot idle all the same
+        raise
     sq_err = np.zeros(len(names))
     n_err = 0
     ended = "complete"
     first_tick = None
-    started = time.monotonic()
     next_report = started
     try:
         session.set_watchdog(0.25)
@@ -106,15 +116,47 @@ def capture(
             if progress is not None and (now >= next_report or index == n_ticks - 1):
                 next_report = now + PROGRESS_EVERY_S
                 progress(_counters(session, writer.rows, index + 1, sq_err, n_err))
-        session.finish()
-    except KeyboardInterrupt:
+            if stop is not None:
+                stop.check()  # after this tick's row is written, before the next tick
+        _idle(session, stop)
+    except (CaptureStopped, KeyboardInterrupt) as exc:
         ended = "interrupted"
-        session.finish()
+        _idle(session, stop)
+        footer = _footer(session, writer.rows, n_ticks, ended, started)
+        footer["signal"] = str(exc) if isinstance(exc, CaptureStopped) else "SIGINT"
+        writer.close(footer)
+        return _result(session, writer, n_ticks, sq_err, n_err, ended)
     except LinkError as exc:
+        _idle(session, stop)
         ended = f"link error: {exc}"
         writer.close(_footer(session, writer.rows, n_ticks, ended, started))
         raise LinkError(f"{exc} ({writer.rows} rows kept in {log_path})") from None
+    except LogWriteError as exc:
+        _idle(session, stop)  # the motors first, the file after
+        try:
+            writer.close(_footer(session, writer.rows, n_ticks, f"log write error: {exc}", started))
+            footer = "footer written"
+        except LogWriteError:
+            footer = "no footer"
+        raise LogWriteError(f"{exc} ({footer}; the robot was put idle)") from None
+    except BaseException as exc:  # anything else: the motors first, the file after
+        _idle(session, stop)
+        with contextlib.suppress(LogWriteError):
+            ended = f"error: {type(exc).__name__}: {exc}"
+            writer.close(_footer(session, writer.rows, n_ticks, ended, started))
+        raise
     writer.close(_footer(session, writer.rows, n_ticks, ended, started))
+    return _result(session, writer, n_ticks, sq_err, n_err, ended)
+
+
+def _idle(session: Session, stop: StopRequest | None) -> None:
+    """Put the robot idle and stop the stream (best effort; stop requests no longer raise)."""
+    if stop is not None:
+        stop.disarm()
+    session.finish()
+
+
+def _result(session, writer, n_ticks, sq_err, n_err, ended) -> CaptureResult:
     rms = [math.sqrt(s / n_err) if n_err else float("nan") for s in sq_err]
     link = {**session.stats.as_dict(), "framing_errors": session.stats.framing_errors}
     return CaptureResult(writer.rows, n_ticks, link, rms, ended)

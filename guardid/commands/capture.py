@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
+import os
 import sys
 
 import click
@@ -37,7 +38,8 @@ def _load_trajectory(path: str):
     help="Longest wait for an answer or a telemetry frame [s]; unanswered commands are "
     "sent again, up to 5 times.",
 )
-@click.option("-o", "--output", required=True, help="Log file to write (CSV).")
+@click.option("-o", "--output", required=True, help="Log file to write (CSV); must not exist.")
+@click.option("--force", is_flag=True, help="Replace an existing OUTPUT (never one of the inputs).")
 @click.option("--quiet", is_flag=True, help="No progress display.")
 @click.option(
     "--online",
@@ -54,40 +56,93 @@ def _load_trajectory(path: str):
     "fitted to the current sensor; less noisy) or from the current sensor alone.",
 )
 def capture(
-    port, baud, robot, trajectory_path, duration, periods, timeout, output, quiet, online,
-    online_effort,
+    port, baud, robot, trajectory_path, duration, periods, timeout, output, force, quiet,
+    online, online_effort,
 ):  # fmt: skip
     """Run the trajectory on the robot in closed loop and record telemetry to OUTPUT.
 
-    The default port is the built-in simulated robot. Ctrl-C puts the robot idle and
-    closes the log properly; a vanished port keeps the rows recorded so far.
+    The default port is the built-in simulated robot. Before anything moves, the
+    trajectory is checked against the robot description (joint count; position,
+    velocity and acceleration limits) and the robot's INFO against the same description.
+    OUTPUT is created only after the handshake and never replaces a file without --force.
+    Ctrl-C or SIGTERM puts the robot idle and closes the log properly; a vanished port or
+    a full disk keeps the rows recorded so far.
     """
+    from guardid.capture.stop import CaptureStopped, StopRequest
+
+    stop = StopRequest()
+    with stop.installed():
+        try:
+            result, tracker = _capture(
+                port, baud, robot, trajectory_path, duration, periods, timeout, output,
+                force, quiet, online, online_effort, stop,
+            )  # fmt: skip
+        except CaptureStopped:
+            click.echo("", err=True)
+            click.echo(f"interrupted ({stop.name}) before the capture started: nothing written")
+            sys.exit(stop.exit_code)
+    if not quiet:
+        click.echo("", err=True)
+    errs = ", ".join(f"{math.degrees(e):.3f} deg" for e in result.rms_tracking_error_rad)
+    st = result.link
+    click.echo(
+        f"{result.ended}: {result.rows} rows in {output} ({result.lost_rows} lost), "
+        f"CRC errors {st['crc_errors']}, framing errors {st['framing_errors']}, "
+        f"sequence gaps {st['seq_gaps']}, rms tracking error {errs}"
+    )
+    if tracker is not None:
+        _online_summary(tracker, output, force)
+    if result.ended == "interrupted":
+        sys.exit(stop.exit_code if stop else 130)
+
+
+def _capture(
+    port, baud, robot, trajectory_path, duration, periods, timeout, output, force, quiet,
+    online, online_effort, stop,
+):  # fmt: skip
+    """Check everything, then capture; return (CaptureResult, online tracker or None)."""
     from guardid.capture import capture as run_capture
+    from guardid.capture.checks import check_info, check_trajectory
+    from guardid.capture.stop import StopAwarePort
+    from guardid.commands.outputs import check_output, robot_file
     from guardid.link import Session, open_port
     from guardid.robot import load_robot
 
+    inputs = [("--trajectory", trajectory_path), ("--robot", robot_file(robot))]
+    check_output(output, inputs, force=force)
     description = load_robot(robot)
     trajectory = _load_trajectory(trajectory_path)
     if duration is not None and periods is not None:
         raise ConfigError("--duration and --periods: give one of them, not both")
     if duration is None:
         duration = (periods or 1) * trajectory.period
-    if duration <= 0:
+    if not duration > 0:
         raise ConfigError(f"--duration: must be > 0 s, got {duration:g}")
+    check_trajectory(trajectory, description, duration, trajectory_path)
     tracker = _tracker(online, description, trajectory, online_effort)
-    if tracker is not None and trajectory.period > TRACKING_PERIOD_S:
-        click.echo(
-            f"note: {trajectory_path} repeats every {trajectory.period:g} s; a change is "
-            f"tracked within about one period (for {TRACKING_PERIOD_S:g} s: guardid excite "
-            "--base-freq 0.2 --harmonics 3, README 'Excitation for tracking')",
-            err=True,
-        )
+    if tracker is not None:
+        from guardid.online import online_path
+
+        check_output(online_path(output), inputs, option="--online output", force=force)
+        if trajectory.period > TRACKING_PERIOD_S:
+            click.echo(
+                f"note: {trajectory_path} repeats every {trajectory.period:g} s; a change is "
+                f"tracked within about one period (for {TRACKING_PERIOD_S:g} s: guardid excite "
+                "--base-freq 0.2 --harmonics 3, README 'Excitation for tracking')",
+                err=True,
+            )
     port_url = port or f"sim://{robot}"
+    stop.check()
     serial_port = open_port(port_url, baud)
-    session = Session(serial_port, timeout_s=timeout)
+    session = Session(StopAwarePort(serial_port, stop), timeout_s=timeout)
     try:
-        info = session.handshake()
-        _check_info(info, description, port_url)
+        try:
+            info = session.handshake()
+            check_info(info, description, port_url)
+        except BaseException:
+            stop.disarm()
+            session.finish()  # best effort: leave the robot idle whatever went wrong
+            raise
         header = {
             "robot": description.name,
             "robot_source": str(description.source),
@@ -109,38 +164,12 @@ def capture(
             header,
             progress=None if quiet else _progress_with(tracker),
             on_row=None if tracker is None else _on_row(tracker, quiet),
+            stop=stop,
+            overwrite=force,
         )
     finally:
         serial_port.close()
-    if not quiet:
-        click.echo("", err=True)
-    errs = ", ".join(f"{math.degrees(e):.3f} deg" for e in result.rms_tracking_error_rad)
-    st = result.link
-    click.echo(
-        f"{result.ended}: {result.rows} rows in {output} ({result.lost_rows} lost), "
-        f"CRC errors {st['crc_errors']}, framing errors {st['framing_errors']}, "
-        f"sequence gaps {st['seq_gaps']}, rms tracking error {errs}"
-    )
-    if tracker is not None:
-        _online_summary(tracker, output)
-    if result.ended == "interrupted":
-        sys.exit(130)
-
-
-def _check_info(info: dict, description, port: str) -> None:
-    from guardid.capture.run import _counts_per_rad
-
-    if info["joint_count"] != description.n_dof:
-        raise ConfigError(
-            f"{description.source or description.name}: describes {description.n_dof} joints, "
-            f"the robot on {port} reports {info['joint_count']}"
-        )
-    expected = [int(round(c * 2 * math.pi)) for c in _counts_per_rad(description)]
-    if list(info["counts_per_rev"]) != expected:
-        raise ConfigError(
-            f"{description.source or description.name}: encoder counts per joint revolution "
-            f"{expected} differ from the robot's {list(info['counts_per_rev'])} on {port}"
-        )
+    return result, tracker
 
 
 def _progress(c: dict) -> None:
@@ -186,10 +215,12 @@ def _on_row(tracker, quiet: bool):
     return feed
 
 
-def _online_summary(tracker, output: str) -> None:
+def _online_summary(tracker, output: str, force: bool) -> None:
     from guardid.online import online_path
 
     path = online_path(output)
+    if not force and os.path.lexists(path):  # appeared during the capture
+        raise ConfigError(f"{path}: already exists; online estimates not written (--force)")
     tracker.write_csv(path)
     final = "; ".join(
         f"{m.upper()} "

@@ -81,6 +81,17 @@ def _load_all(logs, robot_opt, foreign):
     return runs, description
 
 
+def _check_outputs(logs, robot, foreign, **outputs) -> None:
+    """ConfigError when -o or --plot names one of the inputs (a log, the robot or mapping
+    YAML): results never replace recorded data."""
+    from guardid.commands.outputs import check_output, robot_file
+
+    inputs = [("LOG", x) for x in logs] + [("--robot", robot_file(robot))]
+    inputs += [("--columns", c) for c in foreign.get("columns") or () if Path(c).is_file()]
+    for option, path in (("-o", outputs["output"]), ("--plot", outputs["plot_path"])):
+        check_output(path, inputs, option=option)
+
+
 _PARALLEL_HELP = (
     "Gautier's parallel filter: low-pass the regressor and the torque at HZ [Hz] after the "
     "cut-off filter, then decimate (docs/FOREIGN_LOGS.md) [default: off]."
@@ -119,6 +130,7 @@ def identify(
     from guardid.identify.pipeline import stacked_rows
     from guardid.identify.report import plot, table, to_yaml_dict
 
+    _check_outputs(log, robot, foreign, output=output, plot_path=plot_path)
     logs, (runs, description) = log, _load_all(log, robot, foreign)
     run, log = runs[0], logs[0]
     if len({r.torque for r in runs}) > 1:

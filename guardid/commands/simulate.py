@@ -102,8 +102,10 @@ def simulate(robot, duration, seed, payload_time, payload_mass, payload_com, no_
     the period ending at t, encoder counts, q_sensed [rad], sensed mean voltage [V] and
     current [A], and the setpoint [rad] the PID used at t.
     """
+    from guardid.commands.outputs import check_output, robot_file
     from guardid.plant import PayloadChange
 
+    check_output(output, [("--robot", robot_file(robot))])
     if not (duration > 0 and math.isfinite(duration)):
         raise SimulateError(f"--duration must be > 0 s, got {duration}")
     payload = ()

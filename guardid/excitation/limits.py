@@ -107,17 +107,25 @@ class JointUsage:
         )
 
 
-def dense_times(traj: Trajectory, dt: float = DENSE_DT) -> np.ndarray:
-    """Times [s] every dt over one period including both ends (60 s if aperiodic)."""
+def dense_times(traj: Trajectory, dt: float = DENSE_DT, horizon_s: float | None = None):
+    """Times [s] every dt over one period including both ends (60 s if aperiodic), or
+    over ``horizon_s`` [s] when given and shorter than the period."""
     horizon = traj.period if math.isfinite(traj.period) else 60.0
+    if horizon_s is not None and (horizon_s < horizon or not math.isfinite(traj.period)):
+        horizon = horizon_s
     steps = max(int(math.ceil(horizon / dt)), 1)
     return np.linspace(0.0, horizon, steps + 1)
 
 
+def dense_states(traj: Trajectory, dt: float = DENSE_DT, horizon_s: float | None = None):
+    """(t, (q, qd, qdd)) on :func:`dense_times`: the grid every limit check here uses."""
+    t = dense_times(traj, dt, horizon_s)
+    return t, traj.states(t)
+
+
 def limit_usage(traj: Trajectory, desc, dt: float = DENSE_DT) -> list[JointUsage]:
     """Per joint usage of the description's (unshrunk) limits on a grid of step dt [s]."""
-    t = dense_times(traj, dt)
-    q, qd, qdd = traj.states(t)
+    _, (q, qd, qdd) = dense_states(traj, dt)
     out = []
     for j, joint in enumerate(desc.joints):
         lim = joint.limits
@@ -135,6 +143,54 @@ def limit_usage(traj: Trajectory, desc, dt: float = DENSE_DT) -> list[JointUsage
             )
         )
     return out
+
+
+@dataclass(frozen=True)
+class LimitViolation:
+    """Where a trajectory first leaves a joint's limits: ``kind`` position, velocity or
+    acceleration; ``limit`` the bound crossed and ``value`` the trajectory's value there
+    [rad, rad/s or rad/s^2]; ``time_s`` [s] from the trajectory's start."""
+
+    joint: str
+    kind: str
+    limit: float
+    value: float
+    time_s: float
+
+    def describe(self) -> str:
+        """One line naming the joint, the limit, the value and the time (degrees)."""
+        unit = {"position": "deg", "velocity": "deg/s", "acceleration": "deg/s^2"}[self.kind]
+        return (
+            f"joint {self.joint}: {self.kind} {math.degrees(self.value):.1f} {unit} at "
+            f"t = {self.time_s:.3f} s is beyond its limit {math.degrees(self.limit):.1f} {unit}"
+        )
+
+
+def first_violation(
+    traj: Trajectory, desc, horizon_s: float | None = None, dt: float = DENSE_DT
+) -> LimitViolation | None:
+    """The earliest crossing of the description's (unshrunk) limits on the dense grid of
+    :func:`limit_usage` (over ``horizon_s`` [s] if shorter than a period), or None."""
+    t, (q, qd, qdd) = dense_states(traj, dt, horizon_s)
+    found: list[LimitViolation] = []
+    for j, joint in enumerate(desc.joints):
+        lim = joint.limits
+        v, a = qd[:, j], qdd[:, j]
+        cases = [
+            ("velocity", v, np.abs(v) > lim.velocity, lim.velocity),
+            ("acceleration", a, np.abs(a) > lim.acceleration, lim.acceleration),
+        ]
+        if lim.position is not None:
+            lo, hi = lim.position
+            qj = q[:, j]
+            cases += [("position", qj, qj > hi, hi), ("position", qj, qj < lo, lo)]
+        for kind, values, over, bound in cases:
+            if over.any():
+                k = int(np.argmax(over))  # first sample beyond the bound
+                if kind != "position":
+                    bound = math.copysign(bound, values[k])
+                found.append(LimitViolation(joint.name, kind, bound, float(values[k]), float(t[k])))
+    return min(found, key=lambda v: v.time_s, default=None)
 
 
 def fit_factors(traj: Trajectory, limits: JointLimits, dt: float = DENSE_DT) -> np.ndarray:

@@ -17,15 +17,17 @@ leaves every completed row readable; the footer is then missing, which the reade
 
 from __future__ import annotations
 
+import errno
 import io
 import os
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import yaml
 
-from guardid.errors import LogFormatError
+from guardid.errors import GuardidError, LogFormatError
 
 LOG_VERSION = 1
 PER_JOINT = (
@@ -50,23 +52,67 @@ def _comment(text: str) -> str:
     return "".join(f"# {line}\n" for line in text.rstrip("\n").splitlines())
 
 
-class LogWriter:
-    """Write a log incrementally. Every row is flushed (and fsync'ed every ``sync_every``)."""
+class LogWriteError(GuardidError):
+    """A log cannot be written (exists, no permission, disk full); the rows already
+    written are kept."""
 
-    def __init__(self, path, joint_names, header: dict, sync_every: int = 50) -> None:
+
+SYNC_INTERVAL_S = 1.0
+"""Longest wall-clock time [s] between two fsyncs of a log (power loss loses at most this)."""
+
+_NO_SYNC = (errno.EINVAL, errno.EROFS, errno.ENOTSUP)  # fsync on a pipe or a device
+
+
+class LogWriter:
+    """Write a log incrementally, one ``os.write`` per row.
+
+    Each row reaches the kernel as soon as it is written, so a killed process (even
+    SIGKILL) leaves every completed row in the file; ``fsync`` runs at most every
+    ``sync_interval_s`` [s] (power loss), and for the header and footer. ``overwrite``
+    False refuses an existing ``path`` (exclusive create). A failed write raises
+    :class:`LogWriteError`; the file is then cut back to its last complete line, so a
+    footer can still follow the rows kept.
+    """
+
+    def __init__(
+        self,
+        path,
+        joint_names,
+        header: dict,
+        overwrite: bool = False,
+        sync_interval_s: float = SYNC_INTERVAL_S,
+    ) -> None:
         self.path = Path(path)
         self.joint_names = list(joint_names)
         self.columns = column_names(self.joint_names)
         self.rows = 0
-        self.sync_every = sync_every
+        self.sync_interval_s = sync_interval_s
+        self._good = 0  # bytes of complete lines in the file
+        self._synced_at = time.monotonic()
+        flags = os.O_WRONLY | os.O_CREAT | (os.O_TRUNC if overwrite else os.O_EXCL)
         try:
-            self._f = open(self.path, "w", encoding="utf-8", newline="\n")  # noqa: SIM115
+            self._fd: int | None = os.open(self.path, flags, 0o666)
+        except FileExistsError:
+            raise LogWriteError(
+                f"{self.path}: already exists; a recorded log is never replaced "
+                "(choose another name, or --force)"
+            ) from None
         except OSError as exc:
-            raise LogFormatError(f"{self.path}: cannot write: {exc.strerror}") from None
+            raise LogWriteError(f"{self.path}: cannot write: {exc.strerror}") from None
         head = {"guardid-log": LOG_VERSION, **header, "columns": self.columns}
-        self._f.write(",".join(self.columns) + "\n")
-        self._f.write(_comment(yaml.safe_dump(head, sort_keys=False, width=1000)))
-        self._flush(sync=True)
+        text = ",".join(self.columns) + "\n"
+        text += _comment(yaml.safe_dump(head, sort_keys=False, width=1000))
+        try:
+            self._append(text, "the header")
+            self._sync(force=True)
+        except LogWriteError:
+            self._close_fd()
+            raise
+
+    @property
+    def closed(self) -> bool:
+        """True once :meth:`close` ran or a write failed beyond repair."""
+        return self._fd is None
 
     def write_row(self, tick: int, time_s: float, counts, q, v, i, sp, status: int) -> None:
         """Append one row: per-joint sequences in joint order, SI units."""
@@ -76,28 +122,71 @@ class LogWriter:
         for seq, fmt in ((q, ".9f"), (v, ".3f"), (i, ".3f"), (sp, ".9f")):
             buf.write("".join(f",{x:{fmt}}" for x in seq))
         buf.write(f",{int(status)}\n")
-        self._f.write(buf.getvalue())
+        self._append(buf.getvalue(), f"row {self.rows + 1}")
         self.rows += 1
-        self._flush(sync=self.rows % self.sync_every == 0)
+        self._sync(force=False)
 
     def close(self, footer: dict) -> None:
-        """Write the footer and close (safe to call twice)."""
-        if self._f.closed:
+        """Write the footer, fsync and close (safe to call twice; closes even on error)."""
+        if self._fd is None:
             return
-        self._f.write(
-            _comment(
-                yaml.safe_dump(
-                    {"footer": {"rows": self.rows, **footer}}, sort_keys=False, width=1000
-                )
-            )
-        )
-        self._flush(sync=True)
-        self._f.close()
+        body = {"footer": {"rows": self.rows, **footer}}
+        text = yaml.safe_dump(body, sort_keys=False, width=1000)
+        try:
+            self._append(_comment(text), "the footer")
+            self._sync(force=True)
+        finally:
+            self._close_fd()
 
-    def _flush(self, sync: bool) -> None:
-        self._f.flush()
-        if sync:
-            os.fsync(self._f.fileno())
+    # ------------------------------------------------------------------ bytes
+    def _append(self, text: str, what: str) -> None:
+        raw = text.encode("utf-8")
+        data = memoryview(raw)
+        if self._fd is None:
+            raise LogWriteError(f"{self.path}: cannot write {what}: the log is closed")
+        try:
+            while data:
+                data = data[self._write(self._fd, data) :]
+        except OSError as exc:
+            self._cut_to_last_line()
+            raise LogWriteError(
+                f"{self.path}: cannot write {what}: {exc.strerror or exc}; {self.rows} rows kept"
+            ) from None
+        self._good += len(raw)
+
+    @staticmethod
+    def _write(fd: int, data) -> int:
+        """The one place bytes leave the writer (tests inject disk faults here)."""
+        return os.write(fd, data)
+
+    def _cut_to_last_line(self) -> None:
+        """Drop a partly written line so the file ends with complete lines."""
+        try:
+            os.ftruncate(self._fd, self._good)
+            os.lseek(self._fd, self._good, os.SEEK_SET)
+        except OSError:
+            pass  # a device (e.g. /dev/full) or a pipe: nothing to cut
+
+    def _sync(self, force: bool) -> None:
+        now = time.monotonic()
+        if not force and now - self._synced_at < self.sync_interval_s:
+            return
+        self._synced_at = now
+        try:
+            os.fsync(self._fd)
+        except OSError as exc:
+            if exc.errno not in _NO_SYNC:
+                raise LogWriteError(
+                    f"{self.path}: cannot sync to disk: {exc.strerror}; {self.rows} rows written"
+                ) from None
+
+    def _close_fd(self) -> None:
+        fd, self._fd = self._fd, None
+        if fd is not None:
+            try:
+                os.close(fd)
+            except OSError:
+                pass
 
 
 @dataclass
