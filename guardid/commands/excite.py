@@ -14,6 +14,7 @@ import time
 import click
 import numpy as np
 
+from guardid.commands._status import Status
 from guardid.excitation import (
     ExcitationError,
     JointLimits,
@@ -22,7 +23,6 @@ from guardid.excitation import (
     regressor_cond,
 )
 from guardid.excitation.limits import SLOW_FRACTION
-from guardid.commands._status import Status
 from guardid.excitation.presets import robot_schroeder, robot_sines, seeded_fourier
 
 SAMPLES = 300  # cond grid: samples per period
