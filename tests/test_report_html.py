@@ -57,23 +57,33 @@ def test_residual_spectrum_finds_a_sinusoid_on_uneven_rows():
     assert np.max(a[:, 1]) < 0.1 * amp  # the noise column has no such line
 
 
-def _result(theta, std):
+def _result(theta, std, nominal=(1.0, 2.0, 0.5)):
     theta, std = np.asarray(theta, float), np.asarray(std, float)
-    ls = SimpleNamespace(method="ls", theta=theta, std=std, rel_std_pct=100 * std / np.abs(theta))
-    return SimpleNamespace(names=("A", "B", "C"), results={"ls": ls}, cond=12.0)
+    ls = SimpleNamespace(method="ls", theta=theta, std=std)
+    return SimpleNamespace(
+        names=("ZZ1R", "ZZ2R", "MX2R"), results={"ls": ls}, cond=12.0,
+        nominal=np.asarray(nominal, float),
+    )  # fmt: skip
 
 
 def test_verdict_names_the_poorly_identified_parameter():
-    text, ok = verdict(_result([1.0, 2.0, 0.5], [0.01, 0.02, 0.1]))  # C: 20 %
-    assert not ok and "C" in text and "20" in text
+    text, ok = verdict(_result([1.0, 2.0, 0.5], [0.01, 0.02, 0.1]))  # MX2R: 20 %
+    assert not ok and "MX2R" in text and "20" in text
     text, ok = verdict(_result([1.0, 2.0, 0.5], [0.01, 0.02, 0.005]))  # all 1 %
-    assert ok and "within 1 %" in text
+    assert ok and "identified to 1 %" in text.lower()
 
 
 def test_verdict_sets_aside_a_parameter_consistent_with_zero():
-    # B is 0.01 +- 0.02: its relative std (200 %) says nothing; the verdict is on A and C
+    # ZZ2R is 0.01 +- 0.02: its relative std (200 %) says nothing; against its kind's
+    # scale (the largest described inertia, 2 kg m^2) the std is 1 %: resolved
     text, ok = verdict(_result([1.0, 0.01, 0.5], [0.01, 0.02, 0.005]))
-    assert ok and "Consistent with zero" in text and "B" in text
+    assert ok and "consistent with zero: ZZ2R" in text
+
+
+def test_verdict_flags_an_unexcited_parameter_near_zero():
+    # 0.1 +- 0.5: within 3 std of zero, but the std is 25 % of its kind's scale: not excited
+    text, ok = verdict(_result([1.0, 0.1, 0.5], [0.01, 0.5, 0.005]))
+    assert not ok and "ZZ2R" in text
 
 
 def test_write_report_never_replaces_a_log_or_an_input(tmp_path):

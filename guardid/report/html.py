@@ -209,46 +209,23 @@ def online_figure(result, tracker) -> str | None:
 
 
 def verdict(result) -> tuple[str, bool]:
-    """(one sentence, trusted): how well LS identified every base parameter."""
+    """(one sentence, trusted): how well the method with standard deviations (LS first)
+    resolves every base parameter, by :func:`guardid.online.information.assess` at
+    :data:`POOR_REL_STD_PCT`."""
+    from guardid.online.information import assess, describe
+
     ls = result.results.get("ls")
-    if ls is None or ls.rel_std_pct is None:
-        ls = next((r for r in result.results.values() if r.rel_std_pct is not None), None)
+    if ls is None or ls.std is None:
+        ls = next((r for r in result.results.values() if r.std is not None), None)
     if ls is None:
         return "No method with standard deviations ran: the uncertainty is unknown.", False
-    rel = np.asarray(ls.rel_std_pct, dtype=float)
-    std = np.asarray(ls.std, dtype=float)
-    if not (np.all(np.isfinite(rel)) and np.all(np.isfinite(std))):
-        return "Not identified: some standard deviations are not finite.", False
-    # a parameter within 3 std of zero has no meaningful relative std: it is reported as
-    # "consistent with zero" with its absolute std, and the verdict is on the others
-    zero = np.abs(ls.theta) < 3.0 * std
-    names = np.asarray(result.names)
-    tail = ""
-    if zero.any():
-        tail = (
-            " Consistent with zero (|estimate| < 3 std): "
-            + ", ".join(
-                f"{n} (std {_fmt(s, 2)})" for n, s in zip(names[zero], std[zero], strict=True)
-            )
-            + "."
-        )
-    if zero.all():
-        return "Not identified: every estimate is within 3 std of zero." + tail, False
-    rel_nz = np.where(zero, -np.inf, rel)
-    worst = int(np.argmax(rel_nz))
-    poor = [n for n, r, z in zip(names, rel, zero, strict=True) if r > POOR_REL_STD_PCT and not z]
-    if poor:
-        return (
-            f"Not identified to {POOR_REL_STD_PCT:g} %: {', '.join(poor)} "
-            f"(worst {names[worst]} at {_fmt(rel[worst], 3)} % relative std). "
-            "A longer run or an excitation that moves these parameters' columns would help." + tail,
-            False,
-        )
+    if not (np.all(np.isfinite(ls.std)) and np.all(np.isfinite(ls.theta))):
+        return "Not identified: some estimates or standard deviations are not finite.", False
+    a = assess(ls.theta, ls.std, result.names, result.nominal, POOR_REL_STD_PCT)
+    text = describe(a)
     return (
-        f"Identified: every base parameter distinguishable from zero within "
-        f"{_fmt(rel[worst], 3)} % relative standard deviation ({ls.method.upper()}; the widest "
-        f"is {names[worst]}), cond(A) {_fmt(result.cond, 3)}." + tail,
-        True,
+        f"{text[0].upper()}{text[1:]} ({ls.method.upper()}, cond(A) {_fmt(result.cond, 3)}).",
+        a.all_resolved,
     )
 
 
