@@ -17,7 +17,7 @@ def _command():
     try:
         from guardid.cli import main
 
-        if "fake-port" in main.commands:
+        if "fake-port" in main.list_commands(None):
             return [sys.executable, "-m", "guardid", "fake-port"]
     except Exception:  # the full CLI may not import while other stages are unfinished
         pass

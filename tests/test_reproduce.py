@@ -32,7 +32,8 @@ def step():
 
 def test_registry_and_cli_registration():
     assert set(EXPERIMENTS) == {"seed000-step", "seed000-slow", "seed000-fast", "seed001-table1"}
-    assert "reproduce" in main.commands
+    assert "reproduce" in main.list_commands(None)
+    assert main.get_command(None, "reproduce").name == "reproduce"
 
 
 def test_seed001_table1_within_one_percent(table1):

@@ -1,11 +1,26 @@
-"""All CLI sub-commands, one module each; add new ones to COMMANDS."""
+"""All CLI sub-commands, one module each; add new ones to COMMANDS.
 
-from guardid.commands.capture import capture
-from guardid.commands.excite import excite
-from guardid.commands.fake_port import fake_port
-from guardid.commands.identify import identify, validate
-from guardid.commands.ports import ports
-from guardid.commands.reproduce import reproduce
-from guardid.commands.simulate import simulate
+Each entry is (name, module, attribute, short help). The group imports a command's module
+only when that command runs (or its own ``--help`` is asked for), so that ``guardid --help``
+and a mistyped command answer without importing numpy or scipy. The short help here is what
+``guardid --help`` lists; a test checks that it equals each command's own docstring line.
+"""
 
-COMMANDS = [simulate, excite, capture, identify, validate, fake_port, ports, reproduce]
+COMMANDS = [
+    ("simulate", "guardid.commands.simulate", "simulate",
+     "Closed-loop PID run of the simulated robot; write true and sensed signals to CSV."),
+    ("excite", "guardid.commands.excite", "excite",
+     "Write an excitation trajectory YAML; print its condition number and limit use."),
+    ("capture", "guardid.commands.capture", "capture",
+     "Run the trajectory on the robot in closed loop and record telemetry to OUTPUT."),
+    ("identify", "guardid.commands.identify", "identify",
+     "Identify the robot's base parameters and motor constants from LOG [LOG ...]."),
+    ("validate", "guardid.commands.identify", "validate",
+     "Torque prediction error (d_tau) of identified parameters on other runs (LOG [LOG ...])."),
+    ("fake-port", "guardid.commands.fake_port", "fake_port",
+     "Serve the emulated robot on a pseudo-terminal until SIGINT/SIGTERM."),
+    ("ports", "guardid.commands.ports", "ports",
+     "List serial ports; warn when a USB-serial adapter's latency timer is above 2 ms."),
+    ("reproduce", "guardid.commands.reproduce", "reproduce",
+     "Simulate EXPERIMENT, run the estimators, print our numbers beside the paper's."),
+]  # fmt: skip

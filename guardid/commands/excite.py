@@ -14,6 +14,7 @@ import time
 import click
 import numpy as np
 
+from guardid.commands._status import Status
 from guardid.excitation import (
     ExcitationError,
     JointLimits,
@@ -72,7 +73,12 @@ SAMPLES = 300  # cond grid: samples per period
     help="start pose, comma-separated degrees per joint (default all 0)",
 )
 @click.option("--no-optimise", is_flag=True, help="write the starting guess as it is")
-@click.option("-v", "--verbose", is_flag=True, help="print optimiser progress to stderr")
+@click.option(
+    "-v",
+    "--verbose",
+    is_flag=True,
+    help="print every optimiser iteration to stderr (on a terminal a live line shows it anyway)",
+)
 @click.option(
     "-o",
     "--output",
@@ -98,7 +104,8 @@ def excite(
     model = build_model(desc)
     start = _start_pose(start_deg, desc)
     JointLimits.of(desc, margin).check_pose(start)
-    progress = (lambda line: click.echo(line, err=True)) if verbose else None
+    status = Status()
+    progress = (lambda line: click.echo(line, err=True)) if verbose else status.show
 
     note = ""
     if kind == "fourier":
@@ -121,6 +128,7 @@ def excite(
                 margin,
                 progress=progress,
             )
+            status.clear()
             traj, cond = res.trajectory, res.cond
             guesses = ", ".join(f"{c:.0f}" for c in res.guess_conds)
             note = (

@@ -114,11 +114,18 @@ _PARALLEL_HELP = (
 @click.option("--current-units", is_flag=True, help="Identify in current units (gain unknown).")
 @click.option("-o", "--output", default=None, help="Write the parameters to this YAML file.")
 @click.option("--plot", "plot_path", default=None, help="Write a PNG report (matplotlib).")
+@click.option(
+    "--report",
+    "report_path",
+    default=None,
+    help="Write a self-contained HTML report (verdict, parameters, fit, residual spectrum, "
+    "online estimators, conditioning, motors; needs matplotlib).",
+)
 @click.option("--parallel-filter", "parallel_hz", type=float, default=None, help=_PARALLEL_HELP)
 @_foreign_options
 def identify(
-    log, robot, method, cutoff, beta, lam, eta, current_units, output, plot_path, parallel_hz,
-    **foreign,
+    log, robot, method, cutoff, beta, lam, eta, current_units, output, plot_path, report_path,
+    parallel_hz, **foreign,
 ):  # fmt: skip
     """Identify the robot's base parameters and motor constants from LOG [LOG ...].
 
@@ -171,13 +178,21 @@ def identify(
                 data["parallel_filter_hz"] = float(parallel_hz)
             yaml.safe_dump(data, f, sort_keys=False)
         click.echo(f"parameters written to {output}")
-    if plot_path:
-        _, A, y = stacked_rows(
+    if plot_path or report_path:
+        cond, A, y = stacked_rows(
             [(r.t, r.q, r.current) for r in runs], description, result.cutoff_hz,
             current_units, run.torque, parallel_filter_hz=parallel_hz,
         )  # fmt: skip
+    if plot_path:
         plot(result, plot_path, A, y, tracker=tracker)
         click.echo(f"plot written to {plot_path}")
+    if report_path:
+        from guardid.report import write_report
+        from guardid.report.cli import identify_page
+
+        page = identify_page(result, description, runs, logs, cond, A, y, tracker)
+        write_report(report_path, page, inputs_paths=logs)
+        click.echo(f"report written to {report_path}")
 
 
 @click.command()

@@ -57,6 +57,9 @@ from guardid.online.detector import ChangeDetector, ChangeReport, DetectorSettin
 from guardid.online.motor import MotorCurrent
 
 ONLINE_METHODS = ("rls", "hopfield")
+LIVE_LS = "ls"
+"""Growing-window least squares on every k-th used row (:class:`guardid.online.information.
+DecimatedLS`): the live parameter uncertainty of ``capture --until-std``; never restarted."""
 DEFAULT_CUTOFF_HZ = 4.0
 """Cut-off [Hz] when the trajectory's highest harmonic is unknown (8 x 0.5 Hz, as offline)."""
 HARMONIC_CUTOFF_FACTOR = 8.0
@@ -152,7 +155,7 @@ class OnlineIdentifier:
     ):
         from guardid.identify.pipeline import identified_names
 
-        unknown = [m for m in methods if m not in ONLINE_METHODS]
+        unknown = [m for m in methods if m not in (*ONLINE_METHODS, LIVE_LS)]
         if unknown or not methods:
             raise ConfigError(
                 f"--online: unknown {', '.join(unknown) or '(none given)'} "
@@ -207,7 +210,9 @@ class OnlineIdentifier:
             settings = detector if isinstance(detector, DetectorSettings) else DetectorSettings()
             units = param_units(self.names)
             self.detectors = {
-                m: ChangeDetector(self.names, n, m, settings, units=units) for m in self.methods
+                m: ChangeDetector(self.names, n, m, settings, units=units)
+                for m in self.methods
+                if m in ONLINE_METHODS
             }
         self._replay_s = REPLAY_S
         #: rows this long after a detected change are not replayed: the causal filter
@@ -242,6 +247,10 @@ class OnlineIdentifier:
 
     # -- set-up ---------------------------------------------------------------------------
     def _make(self, method, p0):
+        if method == LIVE_LS:
+            from guardid.online.information import DecimatedLS
+
+            return DecimatedLS(DecimatedLS.every_for(self.cutoff_hz, self.dt))
         if method == "rls":
             return RLS(lam=self.lam, p0=p0, theta0=self.nominal, info_floor=self.info_floor)
         return Hopfield(theta_n=self.nominal, half_widths=self.half_widths, beta=self.beta,

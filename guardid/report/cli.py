@@ -1,0 +1,36 @@
+"""Glue between the commands and the pages: builds :class:`ReportInputs` from a run."""
+
+from __future__ import annotations
+
+import shlex
+import sys
+
+from guardid.report.html import ReportInputs, identification_report
+
+
+def effort_units(description, torque_unit: str) -> tuple[str, ...]:
+    """Each joint's effort unit: N m (revolute), N (prismatic), or A in current units."""
+    if torque_unit != "N m":
+        return tuple("A" for _ in description.joints)
+    return tuple("N" if j.type == "prismatic" else "N m" for j in description.joints)
+
+
+def command_line() -> str:
+    """The command as typed, for the page's header."""
+    return "guardid " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+
+
+def identify_page(result, description, runs, logs, cond, A, y, tracker) -> str:
+    """The ``identify --report`` page for ``result`` on ``runs`` (conditioned as ``cond``)."""
+    inputs = ReportInputs(
+        t_rows=cond.t[cond.mask],
+        A=A,
+        y=y,
+        joint_names=tuple(j.name for j in description.joints),
+        effort_units=effort_units(description, result.torque_unit),
+        tracker=tracker,
+        samples_read=int(sum(len(r.t) for r in runs)),
+        sources=tuple(str(x) for x in logs),
+        command=command_line(),
+    )
+    return identification_report(result, inputs, title=f"guardid: {description.name} identified")
