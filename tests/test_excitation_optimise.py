@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -16,6 +18,7 @@ from guardid.excitation import (
     optimise_fourier,
     regressor_cond,
 )
+from guardid.excitation.limits import fixed
 from guardid.excitation.presets import robot_schroeder, robot_sines
 from guardid.robot import load_robot
 
@@ -56,7 +59,7 @@ def test_optimised_cond_and_limits(guard, optimised):
     assert result.cond <= result.start_cond / 3
     assert result.cond < min(result.guess_conds)  # better than every seeded guess
     assert result.cond == pytest.approx(regressor_cond(model, traj))
-    assert result.seconds < 30.0
+    # its run time is a figure of bench/bench_excitation.py, not asserted here
     _assert_within_limits(traj, desc)
     _assert_within_limits(result.start_trajectory, desc)
     assert all(u.within for u in limit_usage(traj, desc))
@@ -111,7 +114,10 @@ def test_cli_end_to_end(tmp_path):
     assert "joint pan: position unlimited, used " in text
     assert "joint tilt: position -10.0..35.0 deg used " in text
     assert "% of limit; acceleration " in text
-    assert "starts and ends (after each whole period) at rest at (0.0, 0.0) deg" in text
+    rest = re.search(r"starts and ends \(after each whole period\) at rest at \((.*)\) deg", text)
+    assert rest, text
+    np.testing.assert_allclose([float(x) for x in rest[1].split(",")], [0.0, 0.0], atol=0.05)
+    assert "-0.0" not in text  # no signed zero in what a user reads
     traj = load_trajectory(out)
     assert isinstance(traj, FourierTrajectory) and traj.harmonics == 5
     cond = float(text.split("condition number: ")[1].split()[0])
@@ -144,3 +150,13 @@ def test_cli_errors_are_one_line(tmp_path, args, message):
     assert message in result.output
     assert result.output.startswith("guardid: error: ") and result.output.count("\n") == 1
     assert "Traceback" not in result.output
+
+
+@pytest.mark.parametrize(
+    ("value", "text"),
+    [(-1e-17, "0.0"), (-0.0, "0.0"), (-0.049, "0.0"), (-0.051, "-0.1"), (0.06, "0.1"),
+     (-7.7, "-7.7"), (32.68, "32.7")],
+)  # fmt: skip
+def test_printed_degrees_have_no_signed_zero(value, text):
+    """Numbers that round to zero print unsigned; others keep their sign and digit."""
+    assert fixed(value) == text

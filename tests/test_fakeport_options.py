@@ -1,5 +1,10 @@
 """sim:// URL grammar, validation and registration with pyserial."""
 
+import os
+import subprocess
+import sys
+import textwrap
+
 import pytest
 import serial
 
@@ -111,3 +116,29 @@ def test_named_device_from_environment(monkeypatch):
     monkeypatch.setenv(fp.factory.DEVICE_ENV, "nope")
     with pytest.raises(fp.SimUrlError, match="nope"):
         serial.serial_for_url("sim://guard")
+
+
+def test_import_guardid_alone_registers_sim_urls():
+    """In a fresh interpreter, ``import guardid`` (and nothing else from guardid) is enough
+    for ``serial.serial_for_url("sim://guard")``; importing guardid loads neither numpy nor
+    scipy nor the fake port (pyserial imports that when the URL is opened). The port is the
+    emulated robot: a lock-step read of 0.1 s advances its clock by exactly 0.1 s."""
+    code = textwrap.dedent(
+        """
+        import sys
+        import guardid
+        import serial
+        heavy = sorted(m for m in ("numpy", "scipy", "guardid.fakeport") if m in sys.modules)
+        assert not heavy, heavy
+        port = serial.serial_for_url("sim://guard?seed=1", timeout=0.1)
+        assert type(port).__module__ == "guardid.fakeport.protocol_sim", type(port)
+        assert port.read(1) == b"" and port.sim_time_s == 0.1
+        assert type(port.engine.device).__name__ == "FirmwareEmulator"
+        port.close()
+        print("ok")
+        """
+    )
+    env = {k: v for k, v in os.environ.items() if k != fp.factory.DEVICE_ENV}
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         timeout=300)  # fmt: skip
+    assert res.returncode == 0 and res.stdout == "ok\n", res.stderr

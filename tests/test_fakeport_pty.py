@@ -58,7 +58,7 @@ def server():
     yield start
     for proc, sig in procs:
         proc.send_signal(sig)
-        assert proc.wait(timeout=10) == 0
+        assert proc.wait(timeout=60) == 0  # a generous bound, ended by the exit
         proc.stdout.close()
 
 
@@ -75,7 +75,8 @@ def _sim(script, query=""):
 
 
 def test_pty_ping_pong_matches_sim_lockstep(server):
-    path = server()
+    # the host answers every frame, so no timing-based fallback: deterministic under load
+    path = server("--idle-ms", "0")
     with serial.Serial(path, timeout=10) as port:
         over_pty = _ping_pong(port)
     expected = _sim(_ping_pong)

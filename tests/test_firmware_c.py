@@ -568,7 +568,10 @@ def test_capture_and_identification_through_the_c_core_equal_the_emulator(tmp_pa
 def test_fake_port_cli_serves_the_c_core():
     env = dict(os.environ)
     env.pop("GUARDID_FAKEPORT_DEVICE", None)
-    cmd = [sys.executable, "-m", "guardid", "fake-port", "--seed", "1", "--firmware", "c"]
+    # generous lock-step windows: a host descheduled (load beside the test) for under 50 ms
+    # between its start-up commands cannot make the server step (and the watchdog trip)
+    cmd = [sys.executable, "-m", "guardid", "fake-port", "--seed", "1", "--firmware", "c",
+           "--settle-ms", "50", "--idle-ms", "100"]  # fmt: skip
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=env)  # fmt: skip
     try:
@@ -576,7 +579,7 @@ def test_fake_port_cli_serves_the_c_core():
         assert path.startswith("/dev/"), proc.stderr.read()
         port = serial.Serial(path, 115200, timeout=2.0)
         try:
-            session = Session(port, timeout_s=2.0)
+            session = Session(port, timeout_s=60.0)  # a bound, ended by the answer
             info = session.handshake()
             session.set_mode("voltage")
             session.start_stream()
@@ -587,7 +590,7 @@ def test_fake_port_cli_serves_the_c_core():
             port.close()
     finally:
         proc.terminate()
-        proc.wait(timeout=10)
+        proc.wait(timeout=60)
     assert info["counts_per_rev"] == (24000, 48000)
     assert all(r.mode == MODE["voltage"] for r in rows)
     assert math.isclose(rows[-1].voltage_mv[0], 3000, abs_tol=300)

@@ -164,18 +164,58 @@ def test_no_report_without_a_change(runs):
     assert "payload changed" not in res.output
 
 
-def test_realtime_capture_keeps_up_with_both_estimators(runs, tmp_path):
-    """Paced in real time (the robot's 15 ms tick on the wall clock): every row arrives, the
-    firmware never runs out of setpoints, and the tracker saw every row (a backlog would show
-    as lost rows or setpoint underruns). Per-row cost and its margin: bench/bench_online.py."""
-    log = tmp_path / "rt.csv"
-    url = "sim://guard?seed=2&pacing=realtime"
-    tracker, result = live_capture(url, runs["traj"], 10.0, log)
-    assert result.ended == "complete" and result.rows == result.ticks_expected >= 666
+def paced_capture(traj_path, seconds, log, host_s):
+    """Capture through a lock-step ``sim://`` port while the robot runs on for
+    ``host_s(k)`` of simulated time during the host's work on row k (the tracker's update
+    included): a host that slow, at a pace the test sets, not the machine's.
+    Returns (tracker, capture result, the robot's lag behind the host in ticks per row)."""
+    trajectory = load_trajectory(traj_path)
+    tracker = OnlineIdentifier.for_trajectory(GUARD, ("rls", "hopfield"), trajectory)
+    port = open_port("sim://guard?seed=2")
+    device_ticks = []
+
+    def on_row(t, q, v, i):
+        tracker.update(t, q, i, v)
+        engine = port.engine
+        engine.advance_to(engine.now_ns + round(host_s(len(device_ticks)) * 1e9))
+        device_ticks.append(engine.ticks)
+
+    try:
+        session = Session(port)
+        session.handshake()
+        result = capture(session, GUARD, trajectory, seconds, log, {"robot": "guard"},
+                         on_row=on_row)  # fmt: skip
+    finally:
+        port.close()
+    # ticks the robot is ahead of the row being processed, relative to the first row
+    lag = np.asarray(device_ticks) - device_ticks[0] - np.arange(len(device_ticks))
+    return tracker, result, lag
+
+
+def underruns(log) -> int:
+    """Rows whose status says the firmware ran out of setpoints."""
     status = read_log(log).columns["status"].astype(int)
-    assert not np.any(status & (1 << STATUS["setpoint_underrun"]))
+    return int(np.count_nonzero(status & (1 << STATUS["setpoint_underrun"])))
+
+
+def test_capture_keeps_up_with_both_estimators_at_a_paced_host(runs, tmp_path):
+    """A host that needs 3 ms per row (RLS + Hopfield included) and 90 ms (6 ticks) on
+    every 20th row keeps up: every row arrives, the setpoints streamed ahead carry the
+    firmware over the slow rows (no underrun), the robot's lead over the row being
+    processed stays below the stream's depth and returns to a tick, and the tracker saw
+    every row. A host needing 20 ms on every row falls behind and the same records show it
+    (the check can fail). The real per-row cost on this machine: bench/bench_online.py."""
+    log = tmp_path / "paced.csv"
+    jittery = lambda k: 0.090 if k % 20 == 19 else 0.003  # noqa: E731  (mean 7.4 ms)
+    tracker, result, lag = paced_capture(runs["traj"], 10.0, log, jittery)
+    assert result.ended == "complete" and result.rows == result.ticks_expected == 667
+    assert underruns(log) == 0
+    assert 6 <= lag.max() <= 7 and lag[-1] <= 1  # behind by 6 ticks at most, then caught up
     assert tracker.rows == result.rows and tracker.used > 0.3 * tracker.rows
-    print(f"online step: {tracker.us_per_row:.0f} us per row")
+    slow = tmp_path / "slow.csv"
+    _, result, lag = paced_capture(runs["traj"], 3.0, slow, lambda k: 0.020)
+    assert result.rows == result.ticks_expected  # rows queue up on the host: none lost
+    assert underruns(slow) > 0 and lag[-1] >= result.rows // 4 - 2  # 5 ms lost per row
 
 
 def test_motor_equation_current_fits_r_and_ke_from_a_wrong_yaml(runs):

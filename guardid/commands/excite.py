@@ -22,7 +22,7 @@ from guardid.excitation import (
     optimise_fourier,
     regressor_cond,
 )
-from guardid.excitation.limits import SLOW_FRACTION
+from guardid.excitation.limits import SLOW_FRACTION, fixed
 from guardid.excitation.presets import robot_schroeder, robot_sines, seeded_fourier
 
 SAMPLES = 300  # cond grid: samples per period
@@ -196,8 +196,8 @@ def _start_pose(text, desc) -> np.ndarray:
 
 def _rest_line(traj) -> str:
     q, qd, qdd = (x[0] for x in traj.states(0.0))
-    pose = ", ".join(f"{v:.1f}" for v in np.degrees(q))
+    pose = ", ".join(map(fixed, np.degrees(q)))
     if np.allclose(qd, 0.0, atol=1e-12) and np.allclose(qdd, 0.0, atol=1e-12):
         return f"starts and ends (after each whole period) at rest at ({pose}) deg"
-    vel = ", ".join(f"{v:.1f}" for v in np.degrees(qd))
+    vel = ", ".join(map(fixed, np.degrees(qd)))
     return f"not at rest at t = 0: q = ({pose}) deg, qd = ({vel}) deg/s; ramp in before playing"

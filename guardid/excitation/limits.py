@@ -20,6 +20,13 @@ DENSE_DT = 1e-3  # s, grid step of the limit checks
 SLOW_FRACTION = 0.05  # |qd| below this fraction of the velocity limit counts as slow (stiction)
 
 
+def fixed(value: float, decimals: int = 1) -> str:
+    """``value`` in fixed point with ``decimals`` digits, never signed zero: a value that
+    rounds to zero prints as ``0.0``, not ``-0.0`` (output text must not depend on the sign
+    of a zero that floating point leaves behind, e.g. -1e-17 rad)."""
+    return f"{round(float(value), decimals) + 0.0:.{decimals}f}"
+
+
 class ExcitationError(GuardidError):
     """An excitation request cannot be met (start pose outside the limits, bad options)."""
 
@@ -57,8 +64,8 @@ class JointLimits:
         for j, q in enumerate(np.asarray(pose, dtype=float)):
             if not self.lo[j] <= q <= self.hi[j]:
                 raise ExcitationError(
-                    f"start pose: joint {self.names[j]} at {math.degrees(q):.1f} deg is outside "
-                    f"{math.degrees(self.lo[j]):.1f}..{math.degrees(self.hi[j]):.1f} deg "
+                    f"start pose: joint {self.names[j]} at {fixed(math.degrees(q))} deg is outside "
+                    f"{fixed(math.degrees(self.lo[j]))}..{fixed(math.degrees(self.hi[j]))} deg "
                     "(limits with the safety margin)"
                 )
 
@@ -95,11 +102,12 @@ class JointUsage:
 
     def describe(self) -> str:
         """One line, e.g. 'joint tilt: position -10.0..35.0 deg used -8.1..31.2 deg; ...'."""
-        used = "{:.1f}..{:.1f} deg".format(*np.degrees(self.position_used))
+        used = "{}..{} deg".format(*map(fixed, np.degrees(self.position_used)))
         if self.position_limit is None:
             pos = f"position unlimited, used {used}"
         else:
-            pos = "position {:.1f}..{:.1f} deg used ".format(*np.degrees(self.position_limit))
+            lo, hi = map(fixed, np.degrees(self.position_limit))
+            pos = f"position {lo}..{hi} deg used "
             pos += used
         return (
             f"joint {self.name}: {pos}; velocity {100 * self.velocity_ratio:.0f} % of limit; "
