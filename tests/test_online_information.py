@@ -39,11 +39,14 @@ def test_decimation_is_one_row_per_half_cutoff_period():
 @pytest.mark.parametrize(
     ("theta", "std", "resolved", "zero_like"),
     [
-        ([0.77, 0.07], [0.0077, 0.0007], [True, True], [False, False]),  # 1 % each
-        ([0.77, 0.07], [0.0077, 0.0021], [True, False], [False, False]),  # MY2 3 %
-        # MY2 0.001 +- 0.01: zero-like; 0.01 is 1.3 % of its kind's scale (MX2R 0.77)
-        ([0.77, 0.001], [0.0077, 0.01], [True, True], [False, True]),
-        # MY2 0.02 +- 0.1: zero-like but 13 % of the scale: not excited
+        # MY2's 0.07 is below a tenth of its kind's scale (MX2R 0.77): judged against 0.077
+        ([0.77, 0.07], [0.0077, 0.0007], [True, True], [False, False]),  # 1 %, 0.91 %
+        ([0.77, 0.07], [0.0077, 0.0021], [True, False], [False, False]),  # MY2 2.7 %
+        ([0.77, 0.07], [0.0154, 0.0007], [True, True], [False, False]),  # MX2R 2.0 %
+        ([0.77, 0.07], [0.0155, 0.0007], [False, True], [False, False]),  # MX2R 2.01 %
+        # MY2 0.001 +- 0.001: zero-like; 0.001 / 0.077 = 1.3 %
+        ([0.77, 0.001], [0.0077, 0.001], [True, True], [False, True]),
+        # MY2 0.02 +- 0.1: zero-like and 130 %: not excited
         ([0.77, 0.02], [0.0077, 0.1], [True, False], [False, True]),
     ],
 )

@@ -74,14 +74,14 @@ def test_verdict_names_the_poorly_identified_parameter():
 
 
 def test_verdict_sets_aside_a_parameter_consistent_with_zero():
-    # ZZ2R is 0.01 +- 0.02: its relative std (200 %) says nothing; against its kind's
-    # scale (the largest described inertia, 2 kg m^2) the std is 1 %: resolved
+    # ZZ2R is 0.01 +- 0.02: its relative std (200 %) says nothing; against a tenth of its
+    # kind's scale (the largest described inertia, 2 kg m^2) the std is 10 %: resolved
     text, ok = verdict(_result([1.0, 0.01, 0.5], [0.01, 0.02, 0.005]))
     assert ok and "consistent with zero: ZZ2R" in text
 
 
 def test_verdict_flags_an_unexcited_parameter_near_zero():
-    # 0.1 +- 0.5: within 3 std of zero, but the std is 25 % of its kind's scale: not excited
+    # 0.1 +- 0.5: within 3 std of zero, and the std is 250 % of a tenth of its kind's scale
     text, ok = verdict(_result([1.0, 0.1, 0.5], [0.01, 0.5, 0.005]))
     assert not ok and "ZZ2R" in text
 

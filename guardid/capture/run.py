@@ -59,6 +59,7 @@ def capture(
     on_row: Callable[[float, np.ndarray, np.ndarray, np.ndarray], None] | None = None,
     stop: StopRequest | None = None,
     overwrite: bool = False,
+    until: Callable[[], bool] | None = None,
 ) -> CaptureResult:
     """Capture ``duration_s`` seconds of ``trajectory``; write ``log_path``.
 
@@ -70,7 +71,9 @@ def capture(
     angles (n,) [rad], period-mean motor voltages (n,) [V] and currents (n,) [A] (online
     identification, :mod:`guardid.online`); it runs in the capture loop, so it must be fast.
     ``stop`` (if given) is checked at every tick: once set, the capture ends as
-    'interrupted' (the robot idle, the footer written). ``overwrite`` False refuses an
+    'interrupted' (the robot idle, the footer written). ``until`` (if given) is asked after
+    every row's ``on_row``: True ends the capture early as 'identified' (``capture
+    --until-std``), the robot put idle as at the end. ``overwrite`` False refuses an
     existing ``log_path``. Raises :class:`LinkError` after closing the log when the link
     fails, :class:`LogWriteError` (after putting the robot idle) when the log cannot be
     written; the rows written until then stay in the file.
@@ -116,6 +119,9 @@ def capture(
             if progress is not None and (now >= next_report or index == n_ticks - 1):
                 next_report = now + PROGRESS_EVERY_S
                 progress(_counters(session, writer.rows, index + 1, sq_err, n_err))
+            if until is not None and until():
+                ended, n_ticks = "identified", index + 1  # the ticks this run was to have
+                break
             if stop is not None:
                 stop.check()  # after this tick's row is written, before the next tick
         _idle(session, stop)

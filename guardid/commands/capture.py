@@ -13,6 +13,8 @@ from guardid.errors import ConfigError
 
 TRACKING_PERIOD_S = 5.0
 """--online: excitation periods longer than this [s] get a note on tracking speed."""
+UNTIL_STD_CAP_S = 600.0
+"""--until-std without --duration / --periods: the capture ends by this time at the latest [s]."""
 
 
 def _load_trajectory(path: str):
@@ -55,9 +57,20 @@ def _load_trajectory(path: str):
     help="Motor current for --online: from the motor equation (voltage, encoder, R and Ke "
     "fitted to the current sensor; less noisy) or from the current sensor alone.",
 )
+@click.option(
+    "--until-std",
+    "until_std",
+    type=click.FloatRange(min=0, min_open=True),
+    default=None,
+    help="Keep the robot on its excitation until every base parameter is identified to this "
+    "relative standard deviation [%] (live least squares on the causal conditioning; a "
+    "parameter within 3 std of zero counts when its std is this share of its kind's "
+    "scale), at least one trajectory period; --duration / --periods is then the cap "
+    f"[default cap: {UNTIL_STD_CAP_S:g} s]. Exit 4 when the cap comes first.",
+)
 def capture(
     port, baud, robot, trajectory_path, duration, periods, timeout, output, force, quiet,
-    online, online_effort,
+    online, online_effort, until_std,
 ):  # fmt: skip
     """Run the trajectory on the robot in closed loop and record telemetry to OUTPUT.
 
@@ -73,9 +86,9 @@ def capture(
     stop = StopRequest()
     with stop.installed():
         try:
-            result, tracker = _capture(
+            result, tracker, live = _capture(
                 port, baud, robot, trajectory_path, duration, periods, timeout, output,
-                force, quiet, online, online_effort, stop,
+                force, quiet, online, online_effort, stop, until_std,
             )  # fmt: skip
         except CaptureStopped:
             click.echo("", err=True)
@@ -94,13 +107,19 @@ def capture(
         _online_summary(tracker, output, force)
     if result.ended == "interrupted":
         sys.exit(stop.exit_code if stop else 130)
+    if live is not None:
+        verdict = live.verdict()
+        click.echo(f"{verdict} (live estimate; guardid identify {output} confirms it)")
+        if not live.done():
+            sys.exit(4)
 
 
 def _capture(
     port, baud, robot, trajectory_path, duration, periods, timeout, output, force, quiet,
-    online, online_effort, stop,
+    online, online_effort, stop, until_std=None,
 ):  # fmt: skip
-    """Check everything, then capture; return (CaptureResult, online tracker or None)."""
+    """Check everything, then capture; return (CaptureResult, online tracker or None,
+    :class:`guardid.online.information.UntilStd` or None)."""
     from guardid.capture import capture as run_capture
     from guardid.capture.checks import check_info, check_trajectory
     from guardid.capture.stop import StopAwarePort
@@ -114,12 +133,19 @@ def _capture(
     trajectory = _load_trajectory(trajectory_path)
     if duration is not None and periods is not None:
         raise ConfigError("--duration and --periods: give one of them, not both")
+    if duration is None and periods is None and until_std is not None:
+        duration = UNTIL_STD_CAP_S
     if duration is None:
         duration = (periods or 1) * trajectory.period
     if not duration > 0:
         raise ConfigError(f"--duration: must be > 0 s, got {duration:g}")
     check_trajectory(trajectory, description, duration, trajectory_path)
     tracker = _tracker(online, description, trajectory, online_effort)
+    live = None
+    if until_std is not None:
+        from guardid.online.information import UntilStd
+
+        live = UntilStd(description, trajectory, until_std)
     if tracker is not None:
         from guardid.online import online_path
 
@@ -162,14 +188,15 @@ def _capture(
             duration,
             output,
             header,
-            progress=None if quiet else _progress_with(tracker),
-            on_row=None if tracker is None else _on_row(tracker, quiet),
+            progress=None if quiet else _progress_with(tracker, live),
+            on_row=_on_row(tracker, live, quiet),
             stop=stop,
             overwrite=force,
+            until=None if live is None else live.done,
         )
     finally:
         serial_port.close()
-    return result, tracker
+    return result, tracker, live
 
 
 def _progress(c: dict) -> None:
@@ -192,7 +219,11 @@ def _tracker(online, description, trajectory, effort):
     return OnlineIdentifier.for_trajectory(description, methods, trajectory, effort=effort)
 
 
-def _progress_with(tracker):
+def _progress_with(tracker, live=None):
+    if live is not None:
+        from guardid.online.information import LiveDisplay
+
+        return LiveDisplay(live, sys.stderr, tracker=tracker).show
     if tracker is None:
         return _progress
 
@@ -207,10 +238,17 @@ def _progress_with(tracker):
     return show
 
 
-def _on_row(tracker, quiet: bool):
+def _on_row(tracker, live, quiet: bool):
+    """The per-row callback feeding the --online tracker and the --until-std estimate."""
+    if tracker is None and live is None:
+        return None
+
     def feed(t_s, q, volts, amps) -> None:
-        for report in tracker.update(t_s, q, amps, volts):
-            click.echo(("" if quiet else "\r") + str(report), err=True)
+        if live is not None:
+            live.update(t_s, q, amps, volts)
+        if tracker is not None:
+            for report in tracker.update(t_s, q, amps, volts):
+                click.echo(("" if quiet else "\r") + str(report), err=True)
 
     return feed
 

@@ -88,7 +88,11 @@ def _check_outputs(logs, robot, foreign, **outputs) -> None:
 
     inputs = [("LOG", x) for x in logs] + [("--robot", robot_file(robot))]
     inputs += [("--columns", c) for c in foreign.get("columns") or () if Path(c).is_file()]
-    for option, path in (("-o", outputs["output"]), ("--plot", outputs["plot_path"])):
+    for option, path in (
+        ("-o", outputs["output"]),
+        ("--plot", outputs["plot_path"]),
+        ("--report", outputs["report_path"]),
+    ):
         check_output(path, inputs, option=option)
 
 
@@ -137,7 +141,7 @@ def identify(
     from guardid.identify.pipeline import stacked_rows
     from guardid.identify.report import plot, table, to_yaml_dict
 
-    _check_outputs(log, robot, foreign, output=output, plot_path=plot_path)
+    _check_outputs(log, robot, foreign, output=output, plot_path=plot_path, report_path=report_path)
     logs, (runs, description) = log, _load_all(log, robot, foreign)
     run, log = runs[0], logs[0]
     if len({r.torque for r in runs}) > 1:
