@@ -40,11 +40,16 @@ from guardid.identify.pipeline import identified_names
 from guardid.physical.pseudo_inertia import (
     link_violations,
     log_cholesky_from_standard,
-    standard_from_log_cholesky,
+    standard_jacobian,
 )
 
 BIAS_PER_STD = 0.01
 """Largest shift of an identifiable direction, in its standard deviations, per 100 % prior error."""
+
+TOL = 1e-10
+"""Relative tolerance of the solver on the cost, the step and the gradient [-]."""
+MAX_EVALUATIONS = 2000
+"""Solver iterations at most (each one residual and one analytic Jacobian)."""
 
 _PIN = {"MX": 7, "MY": 8, "MZ": 9, "XY": 4, "YZ": 5, "XZ": 6}
 """Log-Cholesky coordinate held at 0 for a known-zero standard parameter (module docstring)."""
@@ -108,16 +113,23 @@ class _Layout:
         return np.concatenate(parts)
 
     def to_phi(self, x: np.ndarray, phi0: np.ndarray) -> np.ndarray:
+        return self.phi_and_jacobian(x, phi0)[0]
+
+    def phi_and_jacobian(self, x: np.ndarray, phi0: np.ndarray):
+        """(phi (p,), d phi / d x (p, len(x)))."""
         phi = phi0.copy()
+        jac = np.zeros((len(phi0), len(x)))
         at = 0
         for k in range(self.n_links):
             full = np.zeros(10)
-            nfree = len(self.free_link[k])
-            full[self.free_link[k]] = x[at : at + nfree]
-            at += nfree
-            phi[10 * k : 10 * k + 10] = standard_from_log_cholesky(full)
+            cols = self.free_link[k]
+            full[cols] = x[at : at + len(cols)]
+            phi[10 * k : 10 * k + 10], dk = standard_jacobian(full)
+            jac[10 * k : 10 * k + 10, at : at + len(cols)] = dk[:, cols]
+            at += len(cols)
         phi[self.extra] = x[at:]
-        return phi
+        jac[self.extra, at:] = np.eye(len(self.extra))
+        return phi, jac
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         n_link = sum(len(f) for f in self.free_link)
@@ -181,11 +193,15 @@ def fit_consistent(A, y, description, bias_per_std: float = BIAS_PER_STD) -> Con
         data = (R @ (K @ phi) - z) / sigma
         return np.concatenate([data, w * (phi[reg] - phi0[reg]) / s[reg]])
 
+    def jacobian(x):
+        _, dphi = layout.phi_and_jacobian(x, phi0)
+        return np.vstack([(R @ K @ dphi) / sigma, (w / s[reg])[:, None] * dphi[reg]])
+
     lo, hi = layout.bounds()
     x0 = np.clip(layout.to_x(phi0), lo, hi)
     sol = least_squares(
-        residual, x0, bounds=(lo, hi), method="trf", x_scale="jac",
-        ftol=1e-15, xtol=1e-15, gtol=1e-15, max_nfev=4000,
+        residual, x0, jac=jacobian, bounds=(lo, hi), method="trf", x_scale="jac",
+        ftol=TOL, xtol=TOL, gtol=TOL, max_nfev=MAX_EVALUATIONS,
     )  # fmt: skip
     phi = layout.to_phi(sol.x, phi0)
     violations = []

@@ -51,10 +51,13 @@ def standard_from_pseudo(j: np.ndarray) -> np.ndarray:
     )
 
 
-def standard_from_log_cholesky(x: np.ndarray) -> np.ndarray:
-    """phi (10,) of the log-Cholesky coordinates x (10,) (module docstring); always consistent."""
-    a, d1, d2, d3, s12, s23, s13, t1, t2, t3 = np.asarray(x, dtype=float)
-    u = np.exp(a) * np.array(
+_EXP_LIMIT = 300.0
+"""Exponents are clipped to +-this so that a wild trial step cannot overflow [-]."""
+
+
+def _u_matrix(x: np.ndarray) -> np.ndarray:
+    a, d1, d2, d3, s12, s23, s13, t1, t2, t3 = np.clip(x, -_EXP_LIMIT, _EXP_LIMIT)
+    return np.exp(a) * np.array(
         [
             [np.exp(d1), s12, s13, t1],
             [0.0, np.exp(d2), s23, t2],
@@ -62,7 +65,36 @@ def standard_from_log_cholesky(x: np.ndarray) -> np.ndarray:
             [0.0, 0.0, 0.0, 1.0],
         ]
     )
+
+
+_ENTRY = ((None,), (0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))
+"""Entry of U that each log-Cholesky coordinate sets (a scales all of U)."""
+
+
+def standard_from_log_cholesky(x: np.ndarray) -> np.ndarray:
+    """phi (10,) of the log-Cholesky coordinates x (10,) (module docstring); always consistent."""
+    u = _u_matrix(np.asarray(x, dtype=float))
     return standard_from_pseudo(u @ u.T)
+
+
+def standard_jacobian(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(phi (10,), d phi / d x (10, 10)) at the log-Cholesky coordinates x (10,)."""
+    x = np.asarray(x, dtype=float)
+    u = _u_matrix(x)
+    du = np.zeros((10, 4, 4))
+    du[0] = u  # d/da scales all of U
+    scale = np.exp(np.clip(x[0], -_EXP_LIMIT, _EXP_LIMIT))
+    for i, (r, c) in enumerate(_ENTRY[1:], start=1):
+        du[i, r, c] = u[r, c] if i <= 3 else scale
+    dj = du @ u.T
+    dj = dj + np.swapaxes(dj, 1, 2)
+    tr = np.trace(dj[:, :3, :3], axis1=1, axis2=2)
+    inertia = tr[:, None, None] * np.eye(3) - dj[:, :3, :3]
+    jac = np.column_stack(
+        [inertia[:, 0, 0], inertia[:, 0, 1], inertia[:, 0, 2], inertia[:, 1, 1],
+         inertia[:, 1, 2], inertia[:, 2, 2], dj[:, 0, 3], dj[:, 1, 3], dj[:, 2, 3], dj[:, 3, 3]]
+    ).T  # fmt: skip
+    return standard_from_pseudo(u @ u.T), jac
 
 
 def log_cholesky_from_standard(phi: np.ndarray, floor: float = 1e-9) -> np.ndarray:
