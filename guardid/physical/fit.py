@@ -199,10 +199,11 @@ def fit_consistent(A, y, description, bias_per_std: float = BIAS_PER_STD) -> Con
 
     lo, hi = layout.bounds()
     x0 = np.clip(layout.to_x(phi0), lo, hi)
-    sol = least_squares(
-        residual, x0, jac=jacobian, bounds=(lo, hi), method="trf", x_scale="jac",
-        ftol=TOL, xtol=TOL, gtol=TOL, max_nfev=MAX_EVALUATIONS,
-    )  # fmt: skip
+    with np.errstate(over="ignore", invalid="ignore"):  # wild trial steps are rejected
+        sol = least_squares(
+            residual, x0, jac=jacobian, bounds=(lo, hi), method="trf", x_scale="jac",
+            ftol=TOL, xtol=TOL, gtol=TOL, max_nfev=MAX_EVALUATIONS,
+        )  # fmt: skip
     phi = layout.to_phi(sol.x, phi0)
     violations = []
     for k, link in enumerate(description.links):
