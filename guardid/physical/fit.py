@@ -5,7 +5,8 @@ Unknowns (all SI): per link the ten log-Cholesky coordinates of its pseudo-inert
 reflected inertia Ia >= 0, per friction model Fv >= 0, Fc >= 0 and Fo (bounds). Known-zero
 parameters of the robot YAML (``known_zero``) are held at zero through the coordinates that
 produce them (t1..t3 for MX..MZ, s12, s13, s23 for XY, XZ, YZ); an offset declared absent
-(``offset: null``) stays 0.
+(``offset: null``) stays 0. The log-diagonal coordinates are bounded below
+(:data:`MIN_FACTOR`), so every link's pseudo-inertia is strictly positive definite.
 
 Cost (``scipy.optimize.least_squares``, trust-region reflective):
 
@@ -46,6 +47,10 @@ from guardid.physical.pseudo_inertia import (
 BIAS_PER_STD = 0.01
 """Largest shift of an identifiable direction, in its standard deviations, per 100 % prior error."""
 
+MIN_FACTOR = 1e-3
+"""Each diagonal entry of a link's Cholesky factor U (module docstring) stays above this
+times the YAML link's: the pseudo-inertia stays strictly positive definite (mass >= 1e-6 of
+the YAML's; a thin link keeps a sliver of thickness instead of reaching the boundary) [-]."""
 TOL = 1e-10
 """Relative tolerance of the solver on the cost, the step and the gradient [-]."""
 MAX_EVALUATIONS = 2000
@@ -131,11 +136,19 @@ class _Layout:
         jac[self.extra, at:] = np.eye(len(self.extra))
         return phi, jac
 
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        n_link = sum(len(f) for f in self.free_link)
-        lo = np.concatenate(
-            [np.full(n_link, -np.inf), [0.0 if nn else -np.inf for nn in self.extra_nonneg]]
+    def bounds(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Lower bounds: log-diagonal coordinates (a, d1..d3) at most log(1 / MIN_FACTOR)
+        below the prior's x0, so that J stays strictly positive definite; rotor inertias and
+        friction coefficients >= 0."""
+        lo = []
+        for k in range(self.n_links):
+            for i in self.free_link[k]:
+                lo.append(-np.inf if i > 3 else None)
+        lo = np.array(
+            [x0[i] - np.log(1.0 / MIN_FACTOR) if v is None else v for i, v in enumerate(lo)]
         )
+        extra = [0.0 if nn else -np.inf for nn in self.extra_nonneg]
+        lo = np.concatenate([lo, extra])
         return lo, np.full(lo.size, np.inf)
 
 
@@ -197,8 +210,9 @@ def fit_consistent(A, y, description, bias_per_std: float = BIAS_PER_STD) -> Con
         _, dphi = layout.phi_and_jacobian(x, phi0)
         return np.vstack([(R @ K @ dphi) / sigma, (w / s[reg])[:, None] * dphi[reg]])
 
-    lo, hi = layout.bounds()
-    x0 = np.clip(layout.to_x(phi0), lo, hi)
+    x0 = layout.to_x(phi0)
+    lo, hi = layout.bounds(x0)
+    x0 = np.clip(x0, lo, hi)
     with np.errstate(over="ignore", invalid="ignore"):  # wild trial steps are rejected
         sol = least_squares(
             residual, x0, jac=jacobian, bounds=(lo, hi), method="trf", x_scale="jac",
