@@ -2,6 +2,7 @@
 
     .venv/bin/python bench/bench_consistent.py realdata     # DFKI runs 00-02, leave one out
     .venv/bin/python bench/bench_consistent.py guard SEEDS  # guard captures, SEEDS seeds
+    .venv/bin/python bench/bench_consistent.py urdf SEEDS   # guard as URDF against as YAML
 
 Evaluator (independent of guardid.estimators): rows A (M, n, b), torque y (M, n) from the
 same conditioning for every set; error = rms(y - A theta) / rms(y) over all joints stacked.
@@ -125,8 +126,62 @@ def guard(seeds: int) -> None:
           f"worst {np.max(d_diff):.4f}")  # fmt: skip
 
 
+def urdf(seeds: int) -> None:
+    """guard written as URDF + side YAML (guardid export), captured from sim:// and identified
+    beside the YAML robot, per seed: identical telemetry rows? LS and consistent base values
+    (matched by name without the R suffix) and held-out errors."""
+    from click.testing import CliRunner
+
+    from guardid.cli import main
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench-urdf-"))
+    run = CliRunner()
+    assert run.invoke(main, ["excite", "-o", str(tmp / "traj.yaml")]).exit_code == 0
+    arm = tmp / "arm.urdf"
+    assert run.invoke(main, ["export", "--robot", "guard", "--urdf", str(arm)]).exit_code == 0
+    diffs, same_rows = [], 0
+    for seed in range(seeds):
+        out = {}
+        for robot in ("guard", str(arm)):
+            p = tmp / f"{Path(robot).stem}{seed}.csv"
+            args = ["capture", "--robot", robot, "--trajectory", str(tmp / "traj.yaml")]
+            args += ["--duration", "60", "--quiet", "--port", f"sim://{robot}?seed={seed}"]
+            res = run.invoke(main, [*args, "-o", str(p)])
+            assert res.exit_code == 0, res.output
+            desc = load_robot(robot)
+            r = load_run(p)
+            from guardid.online.offline import log_highest_harmonic
+
+            _, A, y = stacked_rows(
+                [(r.t, r.q, r.current)], desc, None, False, False,
+                highest_harmonic_hz=log_highest_harmonic(p),
+            )  # fmt: skip
+            theta, std = ls(A, y)
+            fit = fit_consistent(A, y, desc)
+            names = [n.rstrip("R") for n in identified_names(desc)]
+            rows_text = [x for x in p.read_text().splitlines() if not x.startswith("#")][1:]
+            out[robot] = (
+                {n: (t, sd, c) for n, t, sd, c in zip(names, theta, std, fit.base, strict=True)},
+                rows_text,
+            )
+        (yam, rows_y), (urd, rows_u) = out.values()
+        same_rows += rows_y == rows_u
+        d_ls = max(abs(yam[k][0] - urd[k][0]) / abs(yam[k][0]) for k in yam)
+        d_c = max(abs(yam[k][2] - urd[k][2]) / yam[k][1] for k in yam)
+        diffs.append((d_ls, d_c))
+        print(f"seed {seed:2d}: rows identical {rows_y == rows_u}, LS base values max relative "
+              f"difference {d_ls:.1e}, consistent base values max difference {d_c:.1e} std_LS",
+              flush=True)  # fmt: skip
+    diffs = np.array(diffs)
+    print(f"{same_rows}/{seeds} seeds with identical telemetry; LS relative difference: median "
+          f"{np.median(diffs[:, 0]):.1e}, worst {diffs[:, 0].max():.1e}; consistent [std_LS]: "
+          f"median {np.median(diffs[:, 1]):.1e}, worst {diffs[:, 1].max():.1e}")  # fmt: skip
+
+
 if __name__ == "__main__":
     if sys.argv[1:2] == ["realdata"]:
         realdata()
+    elif sys.argv[1:2] == ["urdf"]:
+        urdf(int(sys.argv[2]) if len(sys.argv) > 2 else 15)
     else:
         guard(int(sys.argv[2]) if len(sys.argv) > 2 else 15)
