@@ -87,15 +87,31 @@ class ConsistentFit:
         return float(self.standard[self.names.index(name)])
 
 
+def _pins(known_zero) -> list[int]:
+    """Log-Cholesky coordinates to hold at 0 so that the known-zero parameters are exactly 0.
+
+    MX, MY, MZ = e^2a (t1, t2, t3): always exact. -YZ = e^2a (s23 e^d3 + t2 t3): exact with
+    MY or MZ also zero; -XZ = e^2a (s13 e^d3 + t1 t3): with MX or MZ; -XY = e^2a (s12 e^d2 +
+    s13 s23 + t1 t2): with XZ or YZ held and MX or MY zero. Others are left to the prior
+    (and checked after the fit)."""
+    z = set(known_zero)
+    pins = {_PIN[k] for k in ("MX", "MY", "MZ") if k in z}
+    if "YZ" in z and z & {"MY", "MZ"}:
+        pins.add(_PIN["YZ"])
+    if "XZ" in z and z & {"MX", "MZ"}:
+        pins.add(_PIN["XZ"])
+    if "XY" in z and pins & {_PIN["XZ"], _PIN["YZ"]} and z & {"MX", "MY"}:
+        pins.add(_PIN["XY"])
+    return sorted(pins)
+
+
 class _Layout:
     """Where each unknown lives: link coordinates, bounded extras, fixed entries."""
 
     def __init__(self, model, description):
         names = list(model.param_names)
         self.n_links = model.n_dof
-        self.pinned = [
-            sorted({_PIN[s] for s in link.known_zero if s in _PIN}) for link in description.links
-        ]
+        self.pinned = [_pins(link.known_zero) for link in description.links]
         self.free_link = [[i for i in range(10) if i not in pins] for pins in self.pinned]
         fixed = {
             names.index(f"Fo{j + 1}")
@@ -222,6 +238,12 @@ def fit_consistent(A, y, description, bias_per_std: float = BIAS_PER_STD) -> Con
     violations = []
     for k, link in enumerate(description.links):
         violations += [f"link {link.name}: {v}" for v in link_violations(phi[10 * k : 10 * k + 10])]
+    for k, link in enumerate(description.links):
+        scale = np.abs(phi[10 * k : 10 * k + 10]).max()
+        for name in link.known_zero:
+            value = phi[model.param_names.index(f"{name}{k + 1}")]
+            if abs(value) > 1e-9 * scale:
+                violations.append(f"{name}{k + 1} = {value:.3g}, declared known_zero")
     for i in layout.extra:
         name = model.param_names[i]
         if not name.startswith("Fo") and phi[i] < 0:
