@@ -11,6 +11,7 @@ pinocchio reads it, plus the offset from the side YAML.
 
 from __future__ import annotations
 
+import functools
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -31,6 +32,7 @@ from guardid.physical.report import yaml_section
 from guardid.robot import load_robot
 
 
+@functools.cache
 def identified(robot, seed=3):
     """(description of the identified robot, its params (p,)) from a consistent fit on
     simulated rows of a perturbed robot (noise 1 % of the torque)."""
