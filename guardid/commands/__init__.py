@@ -23,4 +23,6 @@ COMMANDS = [
      "List serial ports; warn when a USB-serial adapter's latency timer is above 2 ms."),
     ("reproduce", "guardid.commands.reproduce", "reproduce",
      "Simulate EXPERIMENT, run the estimators, print our numbers beside the paper's."),
+    ("export", "guardid.commands.export", "export",
+     "Write the identified robot (PARAMS from identify --consistent) as URDF and/or MJCF."),
 ]  # fmt: skip

@@ -8,7 +8,7 @@ import click
 import numpy as np
 import yaml
 
-from guardid.errors import ConfigError
+from guardid.errors import ConfigError, GuardidError
 
 
 def _robot_for(run, robot_opt):
@@ -96,6 +96,14 @@ def _check_outputs(logs, robot, foreign, **outputs) -> None:
         check_output(path, inputs, option=option)
 
 
+_CONSISTENT_HELP = (
+    "Also fit the full standard parameters under physical consistency (log-Cholesky "
+    "pseudo-inertia, rotor inertia and friction >= 0), regularised towards the robot YAML "
+    "where the data see nothing; prints them and writes them to params.yaml (consistent:), "
+    "which `guardid export` turns into URDF / MJCF (docs/CONSISTENT.md)."
+)
+
+
 _PARALLEL_HELP = (
     "Gautier's parallel filter: low-pass the regressor and the torque at HZ [Hz] after the "
     "cut-off filter, then decimate (docs/FOREIGN_LOGS.md) [default: off]."
@@ -126,10 +134,11 @@ _PARALLEL_HELP = (
     "online estimators, conditioning, motors; needs matplotlib).",
 )
 @click.option("--parallel-filter", "parallel_hz", type=float, default=None, help=_PARALLEL_HELP)
+@click.option("--consistent", is_flag=True, help=_CONSISTENT_HELP)
 @_foreign_options
 def identify(
     log, robot, method, cutoff, beta, lam, eta, current_units, output, plot_path, report_path,
-    parallel_hz, **foreign,
+    parallel_hz, consistent, **foreign,
 ):  # fmt: skip
     """Identify the robot's base parameters and motor constants from LOG [LOG ...].
 
@@ -160,7 +169,12 @@ def identify(
         ticks=arrays["ticks"], in_current_units=current_units, effort_is_torque=run.torque,
         highest_harmonic_hz=_highest_harmonic(log, run), parallel_filter_hz=parallel_hz,
     )  # fmt: skip
-    click.echo(table(result, methods))
+    fit = _consistent(result, runs, description, run.torque, parallel_hz) if consistent else None
+    click.echo(table(result, (*methods, "consistent") if fit else methods))
+    if fit:
+        from guardid.physical.report import standard_table
+
+        click.echo(standard_table(fit))
     for w in result.warnings:
         click.echo(f"warning: {w}", err=True)
     from guardid.online.offline import track_log
@@ -180,6 +194,10 @@ def identify(
             data = to_yaml_dict(result, description, source)
             if parallel_hz:
                 data["parallel_filter_hz"] = float(parallel_hz)
+            if fit:
+                from guardid.physical.report import yaml_section
+
+                data["consistent"] = yaml_section(fit)
             yaml.safe_dump(data, f, sort_keys=False)
         click.echo(f"parameters written to {output}")
     if plot_path or report_path:
@@ -197,6 +215,17 @@ def identify(
         page = identify_page(result, description, runs, logs, cond, A, y, tracker)
         write_report(report_path, page, inputs_paths=logs)
         click.echo(f"report written to {report_path}")
+    if fit and fit.violations:
+        raise GuardidError(
+            f"--consistent: the fit is not physically consistent: {fit.violations[0]}"
+        )
+
+
+def _consistent(result, runs, description, torque, parallel_hz):
+    from guardid.physical.report import add_consistent
+
+    efforts = [(r.t, r.q, r.current) for r in runs]
+    return add_consistent(result, efforts, description, torque, parallel_hz)
 
 
 @click.command()

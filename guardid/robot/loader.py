@@ -40,11 +40,18 @@ def shipped_path(name: str) -> Path:
 
 
 def load_robot(spec: str | Path) -> ChainDescription | FlexibleLinkDescription:
-    """Load a robot by shipped name (:data:`SHIPPED`) or by YAML file path.
+    """Load a robot by shipped name (:data:`SHIPPED`), YAML file path or URDF path (with its
+    side YAML ``<stem>.guardid.yaml``, :mod:`guardid.robot.urdf`).
 
     Raises ConfigError (one line: ``<file>: <key path>: <problem>``) on any invalid content.
     """
     spec_str = str(spec)
+    if spec_str.lower().endswith(".urdf"):  # URDF + side YAML (docs/URDF.md)
+        from guardid.robot.urdf import load_urdf, side_path
+
+        path = Path(spec_str)
+        filename = f"{path.name} (+ {side_path(path).name})"
+        return parse_robot(load_urdf(path), filename, source=str(path))
     if spec_str in SHIPPED:
         path = shipped_path(spec_str)
     else:
