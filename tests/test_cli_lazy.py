@@ -15,7 +15,7 @@ import pytest
 
 from guardid.commands import COMMANDS
 
-HEAVY = ("numpy", "scipy", "matplotlib", "yaml", "serial")
+HEAVY = ("numpy", "scipy", "matplotlib", "yaml")  # pyserial is light: sim:// registers on import
 
 
 def _modules_after(code: str) -> set[str]:
