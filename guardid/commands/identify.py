@@ -61,12 +61,11 @@ def _load(log, robot_opt, columns, sample_period, mat_var, mat_columns):
 
 
 def _highest_harmonic(log, run):
-    """The excitation's highest frequency [Hz] from a guardid log's header, or None."""
-    from guardid.online.offline import log_highest_harmonic
-
+    """The excitation's highest frequency [Hz] from a guardid log's header (read with the
+    log: None for a foreign layout, then the spectrum rule applies)."""
     if run.ticks is None or getattr(run, "torque", False) or str(log).lower().endswith(".mat"):
         return None
-    return log_highest_harmonic(log)  # None for a foreign layout: the spectrum rule applies
+    return run.highest_harmonic_hz
 
 
 def _load_all(logs, robot_opt, foreign):

@@ -47,6 +47,9 @@ def track_log(
     and the change reports with ``echo``; returns the fed tracker, or None when the run
     cannot be replayed (foreign log without ticks or with measured torque). ``effort``: as
     :class:`OnlineIdentifier`'s; 'voltage' falls back to 'current' for a log without voltages.
+    The cut-off follows the run's ``highest_harmonic_hz`` (read with the log, see
+    :func:`guardid.identify.runs.load_run`); ``log_path`` is read for it only when the run
+    does not carry it.
     """
     online = tuple(m for m in methods if m in ONLINE_METHODS)
     if not online:
@@ -58,7 +61,9 @@ def track_log(
         lam = DEFAULT_LAM
     if beta is None or (click.get_current_context(silent=True) and not _explicit("beta")):
         beta = DEFAULT_BETA
-    harmonic = log_highest_harmonic(log_path) if log_path is not None else None
+    harmonic = getattr(run, "highest_harmonic_hz", None)
+    if not hasattr(run, "highest_harmonic_hz") and log_path is not None:
+        harmonic = log_highest_harmonic(log_path)
     if run.voltage is None or np.asarray(run.voltage).shape != np.asarray(run.q).shape:
         effort = "current"
     tracker = OnlineIdentifier(
