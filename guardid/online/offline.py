@@ -1,8 +1,10 @@
-"""Tracking a logged run offline: the log replayed row by row through the online tracker.
+"""Tracking a logged run offline: the log replayed through the online tracker.
 
 ``guardid identify --method ...,rls,hopfield`` calls :func:`track_log`: the same causal
 conditioning, estimators and change detector as ``guardid capture --online`` run over the
-log's rows in order, so offline and live tracking give the same estimates and reports.
+log's rows in order, so offline and live tracking give the same estimates and reports. The
+replay computes what does not depend on the estimators over the whole log at once
+(:mod:`guardid.online.replay`); only the estimators and the detectors go row by row.
 """
 
 from __future__ import annotations

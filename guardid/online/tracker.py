@@ -229,6 +229,7 @@ class OnlineIdentifier:
         size = self._lag + 2 * self.guard + 8
         self._flags = np.zeros((size, n), dtype=bool)
         self._pending: deque = deque()
+        self._replayed = False
 
     @classmethod
     def for_trajectory(cls, description, methods, trajectory, **kwargs) -> OnlineIdentifier:
@@ -264,6 +265,8 @@ class OnlineIdentifier:
 
         Returns the change reports completed by this row (usually none).
         """
+        if self._replayed:
+            raise RuntimeError("a tracker that replayed a log takes no more rows")
         started = time.perf_counter()
         q = np.asarray(q_rad, dtype=float)
         effort = np.asarray(current_a, dtype=float)
@@ -308,7 +311,19 @@ class OnlineIdentifier:
 
     def feed(self, t_s, q_rad, current_a, voltage_v=None) -> list[ChangeReport]:
         """Feed many rows (N,), (N, n), (N, n), (N, n) in order (a replay); returns their
-        reports."""
+        reports.
+
+        A fresh tracker replays a whole log at the estimators' cost
+        (:func:`guardid.online.replay.replay`: everything that does not depend on the
+        estimators' state is computed over all rows at once), with the estimates and
+        reports that :meth:`update` row by row gives (to round-off); it then takes no more
+        rows. Otherwise the rows go through :meth:`update` one by one."""
+        if self.rows == 0 and len(t_s) > 0:
+            from guardid.online.replay import replay
+
+            return replay(self, t_s, q_rad, current_a, voltage_v)
+        if self._replayed:
+            raise RuntimeError("a tracker that replayed a log takes no more rows")
         reports: list[ChangeReport] = []
         cur = np.asarray(current_a)
         volts = np.asarray(voltage_v) if voltage_v is not None else [None] * len(cur)
@@ -342,6 +357,11 @@ class OnlineIdentifier:
             A, y = A[rows], y[rows]
         A = np.ascontiguousarray(A)
         y = np.ascontiguousarray(y, dtype=float)
+        return self._use_row(t, A, y, rows)
+
+    def _use_row(self, t, A, y, rows) -> list[ChangeReport]:
+        """Detectors and estimators on the joint equations A (m, b), y (m,) [N m] of the
+        row at ``t`` [s] (``rows`` (n,) bool: which joints' equations they are)."""
         self.used += 1
         buf = self._rows_buf
         buf.append((t, A, y))
