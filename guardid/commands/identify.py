@@ -141,7 +141,9 @@ def identify(
         click.echo(f"warning: {w}", err=True)
     from guardid.online.offline import track_log
 
-    tracker = track_log(run, description, methods, lam, beta, log_path=log)
+    tracker = track_log(
+        run, description, methods, lam, beta, log_path=log, keep_history=plot_path is not None
+    )
     if tracker is not None and tracker.reports:
         times = sorted({round(r.at_s, 1) for r in tracker.reports})
         when = ", ".join(f"{t:.1f} s" for t in times)

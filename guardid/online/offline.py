@@ -37,7 +37,7 @@ def log_highest_harmonic(path) -> float | None:
 
 def track_log(
     run, description, methods, lam=None, beta=None, log_path=None, echo=click.echo,
-    effort="voltage",
+    effort="voltage", keep_history=True,
 ):  # fmt: skip
     """Replay ``run`` (:class:`guardid.identify.runs.Run`) through an :class:`OnlineIdentifier`.
 
@@ -49,6 +49,7 @@ def track_log(
     and the change reports with ``echo``; returns the fed tracker, or None when the run
     cannot be replayed (foreign log without ticks or with measured torque). ``effort``: as
     :class:`OnlineIdentifier`'s; 'voltage' falls back to 'current' for a log without voltages.
+    ``keep_history``: keep every estimate (for a plot; 200 bytes per row and method).
     The cut-off follows the run's ``highest_harmonic_hz`` (read with the log, see
     :func:`guardid.identify.runs.load_run`); ``log_path`` is read for it only when the run
     does not carry it.
@@ -70,7 +71,7 @@ def track_log(
         effort = "current"
     tracker = OnlineIdentifier(
         description, online, lam=float(lam), beta=float(beta), highest_harmonic_hz=harmonic,
-        effort=effort,
+        effort=effort, keep_history=keep_history,
     )  # fmt: skip
     period = float(description.sample_period)
     t = (np.asarray(run.ticks) - run.ticks[0]) * period

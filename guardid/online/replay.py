@@ -19,6 +19,9 @@ import time
 import numpy as np
 from scipy.signal import sosfilt, sosfilt_zi
 
+CHUNK_ROWS = 20000
+"""Used rows whose regressor is formed at a time (memory: about 0.5 kB per row)."""
+
 
 def replay(tracker, t_s, q_rad, current_a, voltage_v=None) -> list:
     """Feed ``tracker`` (fresh) the rows t (N,) [s], q (N, n) [rad], currents and voltages
@@ -42,7 +45,6 @@ def replay(tracker, t_s, q_rad, current_a, voltage_v=None) -> list:
     lag, g, warmup = tk._lag, tk.guard, tk.warmup
     flags = np.zeros((N, n), dtype=bool)  # the stream's flag ring, unrolled
     keep = []  # (row k, sample j = k - lag) of the rows the guard releases
-    outs = []
     for s, e in zip(starts, ends, strict=True):
         x = np.concatenate([q[s:e], effort[s:e]], axis=1)
         zi = sosfilt_zi(cond.sos)[:, :, None] * x[0][None, None, :]
@@ -69,25 +71,24 @@ def replay(tracker, t_s, q_rad, current_a, voltage_v=None) -> list:
         flags[j[ok & ~warm]] |= mark[ok & ~warm]
         flags[j[ok & warm]] = True
         released = k + g <= e - 1  # the guard's pending rows at a gap or the end are dropped
-        keep.append((k[released], j[released]))
-        outs.append((y1[:, :n], qd, qdd, tau))
-    rows_k = np.concatenate([kk for kk, _ in keep])
-    rows_j = np.concatenate([jj for _, jj in keep])
-    started_ok = rows_j >= 0  # a sample before the first row is in the warm-up: never used
-    rows_k, rows_j = rows_k[started_ok], rows_j[started_ok]
-    # bad joints of a released row: any flag within the guard of its sample, j - g .. j + g
-    # (flags[x] sits at x + g of ``padded``; before the first row nothing is flagged there,
-    # but such windows belong to samples in the warm-up anyway)
-    padded = np.concatenate([np.zeros((g, n), bool), flags, np.zeros((g, n), bool)])
-    csum = np.concatenate([np.zeros((1, n), np.int64), np.cumsum(padded, axis=0)])
-    bad = (csum[rows_j + 2 * g + 1] - csum[rows_j]) > 0
-    if not tk.per_joint:
-        bad[:] = bad.any(axis=1, keepdims=True)
-    use = ~bad.all(axis=1)
-    rows_k, bad = rows_k[use], bad[use]
-    qf, qd, qdd, tau = (np.concatenate([o[i] for o in outs])[rows_k] for i in range(4))
+        released &= j >= 0  # a sample before the first row is in the warm-up: never used
+        kk, jj = k[released], j[released]
+        # bad joints of a released row: any flag within the guard of its sample, j-g .. j+g;
+        # the segment's flags are final here (a later segment only flags its own warm-up)
+        lo = s - lag - 2 * g
+        seg_flags = flags[max(lo, 0) : e]
+        if lo < 0:
+            seg_flags = np.concatenate([np.zeros((-lo, n), bool), seg_flags])
+        csum = np.concatenate([np.zeros((1, n), np.int64), np.cumsum(seg_flags, axis=0)])
+        bad = (csum[jj + g + 1 - lo] - csum[jj - g - lo]) > 0
+        if not tk.per_joint:
+            bad[:] = bad.any(axis=1, keepdims=True)
+        use = ~bad.all(axis=1)
+        kk, local = kk[use], kk[use] - s
+        keep.append((kk, bad[use], y1[local, :n], qd[local], qdd[local], tau[local]))
+    rows_k, bad, qf, qd, qdd, tau = (np.concatenate([p[i] for p in keep]) for i in range(6))
+    del keep, flags
     t_use = t[rows_k] - cond.delay_s
-    A, y = _equations(tk, qf, qd, qdd, tau)
     tk.rows = N
     tk._k = N - 1
     tk._replayed = True
@@ -95,14 +96,18 @@ def replay(tracker, t_s, q_rad, current_a, voltage_v=None) -> list:
     reports = []
     use_row = tk._use_row
     full_rows = np.ones(n, dtype=bool)
-    for i in range(len(rows_k)):
-        ok = ~bad[i]
-        if ok.all():
-            reports += use_row(float(t_use[i]), A[i], y[i], full_rows)
-        else:
-            reports += use_row(
-                float(t_use[i]), np.ascontiguousarray(A[i][ok]), np.ascontiguousarray(y[i][ok]), ok
-            )
+    for c0 in range(0, len(rows_k), CHUNK_ROWS):  # equations a chunk at a time: bounded memory
+        c1 = min(c0 + CHUNK_ROWS, len(rows_k))
+        A, y = _equations(tk, qf[c0:c1], qd[c0:c1], qdd[c0:c1], tau[c0:c1])
+        for i in range(c1 - c0):
+            ok = ~bad[c0 + i]
+            t_i = float(t_use[c0 + i])
+            if ok.all():
+                reports += use_row(t_i, A[i], y[i], full_rows)
+            else:
+                reports += use_row(
+                    t_i, np.ascontiguousarray(A[i][ok]), np.ascontiguousarray(y[i][ok]), ok
+                )
     tk.busy_s = time.perf_counter() - started
     return reports
 

@@ -216,8 +216,8 @@ class OnlineIdentifier:
         self._rows_buf: deque = deque()  # (t, A, y) of the used rows of the last REPLAY_S
         self._hold_until = dict.fromkeys(self.methods, -math.inf)  # no rows before [s]
         self.keep_history = keep_history
-        self._hist_t: list[float] = []
-        self._hist = {m: [] for m in self.methods}
+        self._hist_t = _Growing(())
+        self._hist = {m: _Growing((len(self.names),)) for m in self.methods}
         self.reports: list[ChangeReport] = []
         self.rows = 0  #: telemetry rows fed
         self.used = 0  #: rows given to the estimators
@@ -411,12 +411,8 @@ class OnlineIdentifier:
 
     def tracks(self) -> dict[str, Track]:
         """Every kept estimate per method (needs ``keep_history``)."""
-        t = np.asarray(self._hist_t, dtype=float)
-        b = len(self.names)
-        return {
-            m: Track(m, t, np.asarray(h, dtype=float).reshape(len(t), b))
-            for m, h in self._hist.items()
-        }
+        t = self._hist_t.array()
+        return {m: Track(m, t, h.array()) for m, h in self._hist.items()}
 
     def status(self, names=("MX2R", "MY2")) -> str:
         """Compact progress text: selected current estimates per method, plus the last change."""
@@ -440,6 +436,30 @@ class OnlineIdentifier:
             for m, tr in tracks.items():
                 for t, row in zip(tr.t, tr.theta, strict=True):
                     w.writerow([f"{t:.4f}", m, *(f"{v:.6g}" for v in row)])
+
+
+class _Growing:
+    """Rows of one shape appended one by one into a float64 array that doubles when full
+    (the history of a long replay: 8 bytes per number, not a Python object per row)."""
+
+    def __init__(self, shape: tuple[int, ...]) -> None:
+        self._buf = np.empty((256, *shape))
+        self.n = 0
+
+    def append(self, row) -> None:
+        if self.n == len(self._buf):
+            grown = np.empty((2 * self.n, *self._buf.shape[1:]))
+            grown[: self.n] = self._buf
+            self._buf = grown
+        self._buf[self.n] = row
+        self.n += 1
+
+    def __len__(self) -> int:
+        return self.n
+
+    def array(self) -> np.ndarray:
+        """A copy of the rows appended so far."""
+        return self._buf[: self.n].copy()
 
 
 def read_tracks_csv(path) -> tuple[tuple[str, ...], dict[str, Track]]:
