@@ -76,14 +76,25 @@ def repeated_log(hour: Path, hours: int) -> Path:
     return out
 
 
+def first_minutes(hour: Path, minutes: float) -> Path:
+    """The one-hour log's header and its first ``minutes`` of rows (no footer)."""
+    out = hour.with_name(f"minutes{minutes:g}.csv")
+    if not out.exists():
+        lines = hour.read_text().splitlines(keepends=True)
+        first = next(k for k, ln in enumerate(lines) if k and not ln.startswith("#"))
+        out.write_text("".join(lines[: first + int(minutes * 60 / 0.015)]))
+    return out
+
+
 def run_child(cmd, pythonpath: str | None) -> tuple[float, float, float, str]:
     """(wall s, CPU s, peak RSS MB, stdout) of one subprocess."""
     env = dict(os.environ)
     if pythonpath:
         env["PYTHONPATH"] = pythonpath
     start = time.perf_counter()
+    # run from a neutral directory: the working directory comes first on sys.path
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env,
-                            text=True)  # fmt: skip
+                            text=True, cwd=tempfile.gettempdir())  # fmt: skip
     out = proc.stdout.read()
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - start
@@ -126,6 +137,10 @@ def main() -> None:
     )
     ap.add_argument("--baseline", default=None, help="Another source tree to compare with.")
     ap.add_argument("--methods", nargs="+", default=["default", "ls,wls"])
+    ap.add_argument(
+        "--minutes", type=float, default=None,
+        help="Instead of --hours: the first MINUTES of the one-hour log (a cheaper paired run).",
+    )  # fmt: skip
     args = ap.parse_args()
     trees = [None] + ([str(Path(args.baseline).resolve())] if args.baseline else [])
     hour = hour_log(args.cache)
@@ -133,13 +148,15 @@ def main() -> None:
     read = [sys.executable, "-c", READ_SNIPPET, str(hour)]
     print(f"one-hour log: {hour} ({hour.stat().st_size / 1e6:.1f} MB)")
     measure("read_log, one hour", read, args.runs, trees)
-    for hours in args.hours:
-        log = repeated_log(hour, hours)
+    logs = [(f"{h} h", repeated_log(hour, h)) for h in args.hours]
+    if args.minutes is not None:
+        logs = [(f"{args.minutes:g} min", first_minutes(hour, args.minutes))]
+    for label, log in logs:
         for methods in args.methods:
             cmd = [sys.executable, "-m", "guardid", "identify", str(log)]
             if methods != "default":
                 cmd += ["--method", methods]
-            measure(f"identify {hours} h, methods {methods}", cmd, args.runs, trees)
+            measure(f"identify {label}, methods {methods}", cmd, args.runs, trees)
     print(f"load average {os.getloadavg()[0]:.1f} at the end")
 
 

@@ -262,3 +262,24 @@ def test_memory_follows_the_rows_kept_not_the_text(sim_log, tmp_path, monkeypatc
     finally:
         tracemalloc.stop()
     assert peak < 1.25 * kept + 1_000_000, (peak, kept, path.stat().st_size)
+
+
+def test_foreign_csv_reads_the_same_on_both_paths(tmp_path):
+    from guardid.identify.foreign import parse_mapping, read_foreign
+
+    rng = np.random.default_rng(2)
+    vals = np.round(rng.normal(size=(40, 5)), 6)
+    vals[:, 0] = np.arange(40) * 0.002
+    plain = "time,pos1,pos2,tau1,tau2\n" + "".join(
+        ",".join(f"{v:.6f}" for v in row) + "\n" for row in vals
+    )
+    labelled = "time,pos1,pos2,tau1,tau2,note\n" + "".join(
+        ",".join(f"{v:.6f}" for v in row) + ",ok\n" for row in vals
+    )  # a text column: not plain decimals, so the per-cell path reads it
+    mapping = parse_mapping(["time=time,q1=pos1,q2=pos2,tau1=tau1,tau2=tau2"])
+    a = read_foreign(write(tmp_path, "a.csv", plain), mapping, 2, "planar2")
+    b = read_foreign(write(tmp_path, "b.csv", labelled), mapping, 2, "planar2")
+    want = np.array([[float(f"{v:.6f}") for v in row] for row in vals])
+    for got in (a, b):
+        assert np.array_equal(got.q, want[:, 1:3]) and np.array_equal(got.effort, want[:, 3:5])
+        assert np.array_equal(got.t, want[:, 0] - want[0, 0])

@@ -21,7 +21,7 @@ import yaml
 from guardid.errors import LogFormatError, LogWarning
 from guardid.log.numeric import RowError, parse_lines, parse_plain
 
-BLOCK_BYTES = 1 << 22  #: bytes read and parsed at a time
+BLOCK_BYTES = 1 << 18  #: bytes read and parsed at a time (256 kB: the work arrays stay in cache)
 _GZIP_MAGIC = b"\x1f\x8b"
 _YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml when built with it
 
