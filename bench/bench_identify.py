@@ -1,61 +1,164 @@
-"""Offline identification of a one-hour log, end to end, as a multiple of real time.
+"""`guardid identify` as a user runs it, on a one-hour and a four-hour capture: wall time,
+CPU time and peak memory of the whole command, and reading the one-hour log.
 
-Captures one hour of the optimised excitation from the simulated guard robot (lock-step,
-not timed), then times guardid.identify.identify() with LS, RLS and Hopfield on it:
-conditioning (filters, derivatives, alignment, stiction mask), base regressor and the three
-estimators. Run: python bench/bench_identify.py [seconds of log, default 3600]
+The captures are made once and cached (``--cache``, default <tmp>/guardid-bench-cache):
+one hour of the optimised excitation (``guardid excite``) captured from ``sim://guard`` in
+lock-step; the four-hour log is that hour's rows four times over, ticks continuing with a
+gap of 100 ticks at each join (lost rows: the conditioning restarts there, as it would
+after a real gap; the excitation is periodic, so each hour is a whole number of periods).
+
+Each command runs as a subprocess ``--runs`` times; the figures are the median and the worst
+run. Peak memory is the child's maximum resident set (``os.wait4``). ``--baseline DIR``
+runs the same commands with another source tree first on ``PYTHONPATH`` (for example
+``git worktree add /tmp/old main``), alternating with this one, and prints the ratios
+old/new of the medians: paired figures from the same run on the same (possibly busy) machine.
+
+    python bench/bench_identify.py [--hours 1 4] [--runs 3] [--baseline DIR]
 """
 
 from __future__ import annotations
 
+import argparse
+import os
+import statistics
+import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-from guardid.capture import capture
-from guardid.excitation import load_trajectory
-from guardid.identify import identify
-from guardid.identify.runs import load_run
-from guardid.link import Session, open_port
-from guardid.robot import load_robot
+READ_SNIPPET = (
+    "import sys, time; from guardid.log import read_log; s = time.process_time(); "
+    "d = read_log(sys.argv[1]); print(time.process_time() - s, len(d.columns['tick']))"
+)
 
 
-def main(seconds: float = 3600.0) -> None:
-    guard = load_robot("guard")
-    with tempfile.TemporaryDirectory() as tmp:
-        traj_path = Path(tmp) / "traj.yaml"
-        from click.testing import CliRunner
-
-        from guardid.cli import main as cli
-
-        CliRunner().invoke(cli, ["excite", "-o", str(traj_path)], catch_exceptions=False)
-        trajectory = load_trajectory(traj_path)
-        log = Path(tmp) / "hour.csv"
-        port = open_port("sim://guard?seed=1")
-        session = Session(port)
-        session.handshake()
-        start = time.perf_counter()
-        capture(session, guard, trajectory, seconds, log, {"robot": "guard"})
-        port.close()
-        print(f"captured {seconds:.0f} s of log in {time.perf_counter() - start:.1f} s")
-        start = time.perf_counter()
-        run = load_run(log)
-        print(
-            f"read the log ({log.stat().st_size / 1e6:.1f} MB): {time.perf_counter() - start:.2f} s"
-        )
+def hour_log(cache: Path) -> Path:
+    """The cached one-hour capture (made on first use)."""
+    log = cache / "hour.csv"
+    if log.exists():
+        return log
+    cache.mkdir(parents=True, exist_ok=True)
+    traj = cache / "traj.yaml"
+    guardid = [sys.executable, "-m", "guardid"]
+    subprocess.run([*guardid, "excite", "-o", str(traj)], check=True, capture_output=True)
+    part = cache / "hour.part.csv"
+    part.unlink(missing_ok=True)
     start = time.perf_counter()
-    result = identify(
-        run.t, run.q, run.current, guard, methods=("ls", "rls", "hopfield"),
-        highest_harmonic_hz=0.5,
+    subprocess.run(
+        [*guardid, "capture", "--trajectory", str(traj), "--duration", "3600", "--quiet",
+         "-o", str(part)], check=True,
     )  # fmt: skip
+    print(f"captured one hour from sim://guard in {time.perf_counter() - start:.1f} s wall")
+    part.rename(log)
+    return log
+
+
+def repeated_log(hour: Path, hours: int) -> Path:
+    """``hours`` copies of the one-hour log's rows, ticks continuing (gap of 100 ticks)."""
+    out = hour.with_name(f"hours{hours}.csv")
+    if hours == 1 or out.exists():
+        return hour if hours == 1 else out
+    lines = hour.read_text().splitlines(keepends=True)
+    first = next(k for k, ln in enumerate(lines) if k and not ln.startswith("#"))
+    last = max(k for k, ln in enumerate(lines) if not ln.startswith("#")) + 1
+    head, rows = lines[:first], lines[first:last]
+    t0, t1 = int(rows[0].split(",", 1)[0]), int(rows[-1].split(",", 1)[0])
+    part = out.with_suffix(".part")
+    with open(part, "w", encoding="utf-8") as f:
+        f.writelines(head)
+        for rep in range(hours):
+            shift = rep * (t1 - t0 + 1 + 100)
+            for ln in rows:
+                tick, time_s, rest = ln.split(",", 2)
+                f.write(f"{int(tick) + shift},{float(time_s) + shift * 0.015:.6f},{rest}")
+    part.rename(out)
+    return out
+
+
+def first_minutes(hour: Path, minutes: float) -> Path:
+    """The one-hour log's header and its first ``minutes`` of rows (no footer)."""
+    out = hour.with_name(f"minutes{minutes:g}.csv")
+    if not out.exists():
+        lines = hour.read_text().splitlines(keepends=True)
+        first = next(k for k, ln in enumerate(lines) if k and not ln.startswith("#"))
+        out.write_text("".join(lines[: first + int(minutes * 60 / 0.015)]))
+    return out
+
+
+def run_child(cmd, pythonpath: str | None) -> tuple[float, float, float, str]:
+    """(wall s, CPU s, peak RSS MB, stdout) of one subprocess."""
+    env = dict(os.environ)
+    if pythonpath:
+        env["PYTHONPATH"] = pythonpath
+    start = time.perf_counter()
+    # run from a neutral directory: the working directory comes first on sys.path
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env,
+                            text=True, cwd=tempfile.gettempdir())  # fmt: skip
+    out = proc.stdout.read()
+    _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - start
-    print(
-        f"identify (conditioning + regressor + LS + RLS + Hopfield) on {len(run.t)} samples: "
-        f"{wall:.2f} s = {seconds / wall:.0f}x real time (target >= 1000x); "
-        f"{result.rows} rows after decimation"
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode != 0:
+        raise SystemExit(f"failed ({proc.returncode}): {' '.join(map(str, cmd))}")
+    return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0, out
+
+
+def measure(label, cmd, runs, trees):
+    """Run ``cmd`` ``runs`` times per source tree (alternating); print and return medians."""
+    results = {tree: [] for tree in trees}
+    for _ in range(runs):
+        for tree in trees:
+            results[tree].append(run_child(cmd, tree))
+    medians = {}
+    for tree, rs in results.items():
+        wall = [r[0] for r in rs]
+        cpu = [r[1] for r in rs]
+        rss = [r[2] for r in rs]
+        name = "this tree" if tree is None else f"baseline {tree}"
+        print(
+            f"{label} [{name}]: wall median {statistics.median(wall):.2f} s (worst "
+            f"{max(wall):.2f}), CPU median {statistics.median(cpu):.2f} s, peak RSS "
+            f"{max(rss):.0f} MB, {runs} runs"
+        )
+        medians[tree] = (statistics.median(wall), statistics.median(cpu))
+    if len(trees) == 2:
+        (ow, oc), (nw, nc) = medians[trees[1]], medians[trees[0]]
+        print(f"{label}: old/new wall {ow / nw:.1f}x, CPU {oc / nc:.1f}x (paired, same run)")
+    return medians
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--hours", type=int, nargs="+", default=[1, 4])
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument(
+        "--cache", type=Path, default=Path(tempfile.gettempdir()) / "guardid-bench-cache"
     )
+    ap.add_argument("--baseline", default=None, help="Another source tree to compare with.")
+    ap.add_argument("--methods", nargs="+", default=["default", "ls,wls"])
+    ap.add_argument(
+        "--minutes", type=float, default=None,
+        help="Instead of --hours: the first MINUTES of the one-hour log (a cheaper paired run).",
+    )  # fmt: skip
+    args = ap.parse_args()
+    trees = [None] + ([str(Path(args.baseline).resolve())] if args.baseline else [])
+    hour = hour_log(args.cache)
+    print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at start")
+    read = [sys.executable, "-c", READ_SNIPPET, str(hour)]
+    print(f"one-hour log: {hour} ({hour.stat().st_size / 1e6:.1f} MB)")
+    measure("read_log, one hour", read, args.runs, trees)
+    logs = [(f"{h} h", repeated_log(hour, h)) for h in args.hours]
+    if args.minutes is not None:
+        logs = [(f"{args.minutes:g} min", first_minutes(hour, args.minutes))]
+    for label, log in logs:
+        for methods in args.methods:
+            cmd = [sys.executable, "-m", "guardid", "identify", str(log)]
+            if methods != "default":
+                cmd += ["--method", methods]
+            measure(f"identify {label}, methods {methods}", cmd, args.runs, trees)
+    print(f"load average {os.getloadavg()[0]:.1f} at the end")
 
 
 if __name__ == "__main__":
-    main(float(sys.argv[1]) if len(sys.argv) > 1 else 3600.0)
+    main()

@@ -1,6 +1,7 @@
 """User-facing errors: one line, names the file, field or port, exits non-zero."""
 
 import sys
+import warnings
 
 
 class GuardidError(Exception):
@@ -21,6 +22,15 @@ class LogFormatError(GuardidError):
     """A log file cannot be read."""
 
 
+class GuardidWarning(UserWarning):
+    """Something tolerated that the user should know of; the CLI shows it as one line,
+    ``guardid: warning: <message>``."""
+
+
+class LogWarning(GuardidWarning):
+    """A log was read with something left out (a last row cut by a killed writer)."""
+
+
 class LinkError(GuardidError):
     """The serial link failed (missing port, disconnect, protocol mismatch)."""
 
@@ -30,8 +40,19 @@ class LinkError(GuardidError):
 def report_errors(call, *args, **kwargs):
     """Run ``call``; a :class:`GuardidError` becomes ``guardid: error: ...`` on stderr and
     ``sys.exit(exit_code)`` (no traceback). Used by the CLI's group and standalone commands."""
-    try:
-        return call(*args, **kwargs)
-    except GuardidError as exc:
-        sys.stderr.write(f"guardid: error: {exc}\n")
-        sys.exit(exc.exit_code)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", GuardidWarning)
+        shown = warnings.showwarning
+
+        def show(message, category, *rest, **kw):
+            if issubclass(category, GuardidWarning):
+                sys.stderr.write(f"guardid: warning: {message}\n")
+            else:
+                shown(message, category, *rest, **kw)
+
+        warnings.showwarning = show
+        try:
+            return call(*args, **kwargs)
+        except GuardidError as exc:
+            sys.stderr.write(f"guardid: error: {exc}\n")
+            sys.exit(exc.exit_code)

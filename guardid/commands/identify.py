@@ -61,12 +61,11 @@ def _load(log, robot_opt, columns, sample_period, mat_var, mat_columns):
 
 
 def _highest_harmonic(log, run):
-    """The excitation's highest frequency [Hz] from a guardid log's header, or None."""
-    from guardid.online.offline import log_highest_harmonic
-
+    """The excitation's highest frequency [Hz] from a guardid log's header (read with the
+    log: None for a foreign layout, then the spectrum rule applies)."""
     if run.ticks is None or getattr(run, "torque", False) or str(log).lower().endswith(".mat"):
         return None
-    return log_highest_harmonic(log)  # None for a foreign layout: the spectrum rule applies
+    return run.highest_harmonic_hz
 
 
 def _load_all(logs, robot_opt, foreign):
@@ -179,7 +178,15 @@ def identify(
         click.echo(f"warning: {w}", err=True)
     from guardid.online.offline import track_log
 
-    tracker = track_log(run, description, methods, lam, beta, log_path=log)
+    tracker = track_log(
+        run,
+        description,
+        methods,
+        lam,
+        beta,
+        log_path=log,
+        keep_history=plot_path is not None or report_path is not None,
+    )
     if tracker is not None and tracker.reports:
         times = sorted({round(r.at_s, 1) for r in tracker.reports})
         when = ", ".join(f"{t:.1f} s" for t in times)

@@ -23,7 +23,10 @@ scaling stays below 1e100), and one batched solve per chunk gives theta at every
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
+from scipy.linalg.lapack import dposv as _dposv
 
 from ._base import Estimator, as_blocks, as_sample, checkpoints
 
@@ -34,6 +37,12 @@ _subtract = np.subtract
 _add = np.add
 _divide = np.divide
 _SHAPE2 = (2,)
+
+
+@functools.cache
+def _diagonal(p: int) -> np.ndarray:
+    """Indices 0..p-1: ``M[d, d]`` is the diagonal of a (p, p) matrix."""
+    return np.arange(p)
 
 
 class RLS(Estimator):
@@ -52,6 +61,7 @@ class RLS(Estimator):
 
     _ws = None  # fast-path work arrays (see ``_make_workspace``)
     _ws_theta = None
+    _inv_floor = None  # 1 / ((1 - lam) info_floor), made on first use
 
     def __init__(
         self, lam: float = 1.0, p0=1e6, theta0=None, history_every: int = 10, info_floor=None
@@ -168,10 +178,24 @@ class RLS(Estimator):
         return self
 
     def _floor(self, P) -> None:
-        """Regularised forgetting in place: P <- (P^-1 + (1 - lam) diag(info_floor))^-1."""
-        R = np.linalg.inv(P)
-        R[np.diag_indices_from(R)] += (1.0 - self.lam) * self.info_floor
-        P[...] = np.linalg.inv(R)
+        """Regularised forgetting in place: P <- (P^-1 + (1 - lam) diag(info_floor))^-1.
+
+        By the Woodbury identity with F = (1 - lam) diag(info_floor):
+        (P^-1 + F)^-1 = P - P (P + F^-1)^-1 P, one Cholesky solve of the well-conditioned
+        P + F^-1 (F^-1 dominates the diagonal) instead of two inverses."""
+        inv_floor = self._inv_floor
+        if inv_floor is None or inv_floor.shape[0] != P.shape[0]:
+            inv_floor = self._inv_floor = 1.0 / ((1.0 - self.lam) * self.info_floor)
+        M = P.copy()
+        d = _diagonal(P.shape[0])
+        M[d, d] += inv_floor
+        _, X, info = _dposv(M, P, lower=False, overwrite_a=True, overwrite_b=False)
+        if info != 0:  # not positive definite (never with a covariance): the plain way
+            R = np.linalg.inv(P)
+            R[d, d] += (1.0 - self.lam) * self.info_floor
+            P[...] = np.linalg.inv(R)
+            return
+        _subtract(P, P.dot(X), out=P)
 
     def _update_general(self, A_k, y_k):
         """Reference per-sample step for any n_out (validated (n_out, p) / (n_out,) input)."""

@@ -17,7 +17,8 @@ class Run:
 
     ``current`` is the effort: motor current [A] (period means, as in guardid logs), or joint
     torque [N m] when ``torque`` is True (foreign logs with tau<j> columns: instantaneous
-    samples, used as they are).
+    samples, used as they are). ``highest_harmonic_hz``: the excitation's highest frequency
+    [Hz] named by a guardid log's header (None when unknown: foreign logs).
     """
 
     path: str
@@ -28,6 +29,7 @@ class Run:
     current: np.ndarray
     voltage: np.ndarray | None
     torque: bool = False
+    highest_harmonic_hz: float | None = None
 
 
 def load_run(path, sample_period_s: float | None = None, mapping=None, description=None) -> Run:
@@ -40,7 +42,9 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
         return _load_foreign(path, mapping, description)
     if str(path).lower().endswith(".mat"):
         raise LogFormatError(f"{path}: a .mat file needs a column mapping (--columns)")
-    data = read_log(path)
+    from guardid.identify.pipeline import trajectory_highest_harmonic
+
+    data = read_log(path)  # the only read of the file: header, rows and footer
     for col in ("tick",):
         if col not in data.columns:
             raise LogFormatError(
@@ -64,6 +68,7 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
         q=q,
         current=current,
         voltage=voltage if voltage.shape == q.shape else None,
+        highest_harmonic_hz=trajectory_highest_harmonic(data.header.get("trajectory")),
     )
 
 

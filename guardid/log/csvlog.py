@@ -1,7 +1,7 @@
 """Capture log files: one CSV row per telemetry frame, written and flushed as it arrives.
 
-Layout (readable by ``numpy.loadtxt(path, delimiter=",", skiprows=1)`` and by
-``pandas.read_csv(path, comment="#")``)::
+Layout (read by :func:`guardid.log.read_log`, and by ``numpy.genfromtxt(path,
+delimiter=",", names=True, invalid_raise=False)``, which also skips a cut last row)::
 
     tick,time_s,counts_pan,...,status          <- line 1: column names
     # guardid-log: 1                           <- commented YAML header
@@ -21,13 +21,11 @@ import errno
 import io
 import os
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
 import yaml
 
-from guardid.errors import GuardidError, LogFormatError
+from guardid.errors import GuardidError
 
 LOG_VERSION = 1
 PER_JOINT = (
@@ -187,68 +185,3 @@ class LogWriter:
                 os.close(fd)
             except OSError:
                 pass
-
-
-@dataclass
-class LogData:
-    """A log read back: header and footer dicts, columns by name (numpy arrays)."""
-
-    path: Path
-    header: dict
-    footer: dict | None
-    columns: dict[str, np.ndarray] = field(default_factory=dict)
-
-    @property
-    def joint_names(self) -> list[str]:
-        return [c[len("counts_") :] for c in self.columns if c.startswith("counts_")]
-
-    def joint_array(self, key: str) -> np.ndarray:
-        """(N, n) array of a per-joint column group: counts, q, v, i or sp."""
-        names = [c for c in self.columns if c.startswith(key + "_")]
-        return np.column_stack([self.columns[c] for c in names])
-
-
-def read_log(path) -> LogData:
-    """Read a guardid log; raise :class:`LogFormatError` naming the file and line."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise LogFormatError(f"{path}: cannot read: {exc.strerror}") from None
-    lines = text.splitlines()
-    if not lines or lines[0].startswith("#"):
-        raise LogFormatError(f"{path}: line 1: expected the column names")
-    names = lines[0].split(",")
-    head, foot, data = [], [], []
-    for no, line in enumerate(lines[1:], start=2):
-        if line.startswith("#"):
-            (foot if data or foot else head).append(line[2:])
-        elif line.strip():
-            if foot:
-                raise LogFormatError(f"{path}: line {no}: data after the footer")
-            data.append((no, line))
-    header = _yaml(path, head, "header")
-    footer = _yaml(path, foot, "footer").get("footer") if foot else None
-    rows = np.empty((len(data), len(names)))
-    for k, (no, line) in enumerate(data):
-        parts = line.split(",")
-        if len(parts) != len(names):
-            if k == len(data) - 1 and footer is None:
-                rows = rows[:k]  # a killed writer's partial last line
-                break
-            raise LogFormatError(f"{path}: line {no}: {len(parts)} fields, expected {len(names)}")
-        try:
-            rows[k] = [float(x) for x in parts]
-        except ValueError:
-            raise LogFormatError(f"{path}: line {no}: not a number") from None
-    return LogData(path, header, footer, {n: rows[:, c] for c, n in enumerate(names)})
-
-
-def _yaml(path: Path, lines: list[str], what: str) -> dict:
-    try:
-        value = yaml.safe_load("\n".join(lines)) if lines else {}
-    except yaml.YAMLError as exc:
-        raise LogFormatError(f"{path}: {what}: invalid YAML: {str(exc).splitlines()[0]}") from None
-    if not isinstance(value, dict):
-        raise LogFormatError(f"{path}: {what}: expected a mapping")
-    return value

@@ -145,6 +145,8 @@ class ChangeDetector:
         self._t0: float | None = None
         self._phase_start = 0.0
         self._recent: deque = deque()  # (t, theta) of the last settle_s or reference_s + 1 s
+        self._keep_s = max(s.settle_s, s.reference_s) + 1.0
+        self._refreshing = False
         self._start_reference(0.0)
 
     # -- the stream -----------------------------------------------------------------------
@@ -154,13 +156,17 @@ class ChangeDetector:
         before the row. Returns an :class:`Alarm` when the CUSUM fires."""
         s = self.settings
         theta = np.asarray(theta, dtype=float)
-        x = theta[self.index]
         if self._t0 is None:
             self._t0 = t
-        self._recent.append((t, theta))
-        while self._recent[0][0] < t - max(s.settle_s, s.reference_s) - 1.0:
-            self._recent.popleft()
+        recent = self._recent
+        recent.append((t, theta))
+        oldest = t - self._keep_s
+        while recent[0][0] < oldest:
+            recent.popleft()
+        if self.state == "armed" and not self._refreshing:  # most rows: the CUSUM alone
+            return self._cusum(t, rows, residual)
         rows = np.asarray(rows, dtype=bool)
+        x = theta[self.index]
         if self.state == "holdoff":
             if t - self._t0 >= s.holdoff_s:
                 self._start_reference(t)
@@ -233,6 +239,7 @@ class ChangeDetector:
         floor = max(float(np.max(rms)) * 1e-3, 1e-12)
         # a joint with (almost) no rows in the window has no scale: not watched (z = 0)
         self.sigma = np.where(self._count >= MIN_REFERENCE_ROWS, np.maximum(rms, floor), np.inf)
+        self._sigma_list = [float(x) for x in self.sigma]
         ref = np.asarray(self._ref_x)
         self.spread = ref.std(axis=0) if len(ref) else np.zeros(len(self.index))
 
@@ -242,29 +249,54 @@ class ChangeDetector:
         self._refreshing = refresh
         if not refresh:
             self._set_reference()
-        self._g = np.zeros((2, self.n))
-        self._zero_t = np.full((2, self.n), t)  # last row of the joint with G = 0
-        self._rise_t = np.full((2, self.n), t)  # the joint's first row after that
+        n = self.n
+        # per joint j: CUSUM G+ and G- [sigma x rows], the last row with G = 0 and the
+        # joint's first row after it [s]; Python floats (a few per row: cheaper than arrays)
+        self._g = [[0.0] * n, [0.0] * n]
+        self._zero_t = [[t] * n, [t] * n]
+        self._rise_t = [[t] * n, [t] * n]
         self.state = "armed"
 
     def _cusum(self, t: float, rows, residual) -> Alarm | None:
+        """One CUSUM step on the present joints' residuals; an :class:`Alarm` when it fires.
+
+        Joint j present in ``rows`` takes z = e_j / sigma_j; G+ <- max(0, G+ + z - kappa),
+        G- <- max(0, G- - z - kappa); the first joint and side over ``h`` (earliest last
+        zero, then G+ before G-, then joint order) gives the change time."""
         s = self.settings
-        z = np.zeros(self.n)
-        z[rows] = np.asarray(residual, dtype=float) / self.sigma[rows]
-        g = self._g
-        was_zero = g <= 0.0
-        g[0, rows] = np.maximum(0.0, g[0, rows] + z[rows] - s.kappa)
-        g[1, rows] = np.maximum(0.0, g[1, rows] - z[rows] - s.kappa)
-        present = np.broadcast_to(rows, g.shape)
-        self._zero_t[present & (g <= 0.0)] = t
-        self._rise_t[present & was_zero & (g > 0.0)] = t
-        fired = g > s.h
-        if not fired.any():
+        kappa, h = s.kappa, s.h
+        g_up, g_down = self._g
+        zero_up, zero_down = self._zero_t
+        rise_up, rise_down = self._rise_t
+        sigma = self._sigma_list
+        res = residual.tolist() if hasattr(residual, "tolist") else list(residual)
+        fired = False
+        m = 0
+        for j, present in enumerate(rows.tolist() if hasattr(rows, "tolist") else rows):
+            if not present:
+                continue
+            z = res[m] / sigma[j]
+            m += 1
+            for g, zero_t, rise_t, sign in ((g_up, zero_up, rise_up, 1.0),
+                                            (g_down, zero_down, rise_down, -1.0)):  # fmt: skip
+                was_zero = g[j] <= 0.0
+                v = (g[j] + z if sign > 0 else g[j] - z) - kappa  # the arrays' rounding order
+                if not v > 0.0:  # max(0, v), NaN to 0 as well
+                    v = 0.0
+                g[j] = v
+                if v <= 0.0:
+                    zero_t[j] = t
+                elif was_zero:
+                    rise_t[j] = t
+                fired = fired or v > h
+        if not fired:
             return None
-        first = np.argmin(np.where(fired, self._zero_t, np.inf))
-        onset = float(self._zero_t.flat[first])
+        g_arr = np.array(self._g)
+        zero = np.array(self._zero_t)
+        first = np.argmin(np.where(g_arr > h, zero, np.inf))
+        onset = float(zero.flat[first])
         before = [x for tt, x in self._recent if tt < onset] or [self._recent[0][1]]
-        alarm = Alarm(onset, t, before[-1], latest_s=float(self._rise_t.flat[first]))
+        alarm = Alarm(onset, t, before[-1], latest_s=float(np.array(self._rise_t).flat[first]))
         self.alarms.append(alarm)
         self.before = alarm.theta_before[self.index]
         #: the estimates can learn the change only once its joint moves again

@@ -79,3 +79,50 @@ class MotorCurrent:
         P -= gain[:, :, None] * Pphi[:, None, :]
         P /= self.lam
         return np.einsum("ni,ni->n", phi, th)
+
+    def replay(self, volts, q_rad, current_a, first) -> np.ndarray:
+        """Many rows at once: voltages, angles, measured currents (N, n) and ``first`` (N,)
+        bool, True on a row after a start or gap (no previous angle: its measured current is
+        returned and the fit is not updated). Returns the motor-equation currents (N, n) [A],
+        the values :meth:`update` gives row by row (to round-off), and leaves the fit where
+        the last row left it.
+
+        The same recursion in its information form, R_k = lam R_k-1 + phi phi^T and
+        b_k = lam b_k-1 + phi i_k with theta_k = R_k^-1 b_k (R_0 = P_0^-1, b_0 = R_0
+        theta_0), which is linear in R and b: one ``lfilter`` per entry over the rows."""
+        from scipy.signal import lfilter
+
+        v = np.asarray(volts, dtype=float)
+        q = np.asarray(q_rad, dtype=float)
+        out = np.array(current_a, dtype=float)
+        first = np.asarray(first, dtype=bool).copy()
+        if self._q_prev is not None or len(q) == 0:
+            raise ValueError("replay needs a fresh MotorCurrent (no previous angle)")
+        first[0] = True
+        upd = np.flatnonzero(~first)
+        if upd.size == 0:
+            return out
+        phi_v = v[upd]
+        phi_w = -(q[upd] - q[upd - 1]) / self.dt
+        cur = out[upd]
+        lam = self.lam
+        R0 = np.linalg.inv(self._P)  # (n, 2, 2)
+        b0 = np.einsum("nij,nj->ni", R0, self._theta)
+
+        def run(x, init):  # s_k = lam s_k-1 + x_k from s_0 = init, per joint column
+            return lfilter([1.0], [1.0, -lam], x, axis=0, zi=(lam * init)[None, :])[0]
+
+        r00 = run(phi_v * phi_v, R0[:, 0, 0])
+        r01 = run(phi_v * phi_w, R0[:, 0, 1])
+        r11 = run(phi_w * phi_w, R0[:, 1, 1])
+        b0_ = run(phi_v * cur, b0[:, 0])
+        b1_ = run(phi_w * cur, b0[:, 1])
+        det = r00 * r11 - r01 * r01
+        a = (r11 * b0_ - r01 * b1_) / det
+        c = (r00 * b1_ - r01 * b0_) / det
+        out[upd] = phi_v * a + phi_w * c
+        self._theta = np.stack([a[-1], c[-1]], axis=1)
+        R = np.stack([np.stack([r00[-1], r01[-1]], -1), np.stack([r01[-1], r11[-1]], -1)], -2)
+        self._P = np.linalg.inv(R)
+        self._q_prev = q[-1]
+        return out

@@ -1,8 +1,10 @@
-"""Tracking a logged run offline: the log replayed row by row through the online tracker.
+"""Tracking a logged run offline: the log replayed through the online tracker.
 
 ``guardid identify --method ...,rls,hopfield`` calls :func:`track_log`: the same causal
 conditioning, estimators and change detector as ``guardid capture --online`` run over the
-log's rows in order, so offline and live tracking give the same estimates and reports.
+log's rows in order, so offline and live tracking give the same estimates and reports. The
+replay computes what does not depend on the estimators over the whole log at once
+(:mod:`guardid.online.replay`); only the estimators and the detectors go row by row.
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ def log_highest_harmonic(path) -> float | None:
 
 def track_log(
     run, description, methods, lam=None, beta=None, log_path=None, echo=click.echo,
-    effort="voltage",
+    effort="voltage", keep_history=True,
 ):  # fmt: skip
     """Replay ``run`` (:class:`guardid.identify.runs.Run`) through an :class:`OnlineIdentifier`.
 
@@ -47,6 +49,10 @@ def track_log(
     and the change reports with ``echo``; returns the fed tracker, or None when the run
     cannot be replayed (foreign log without ticks or with measured torque). ``effort``: as
     :class:`OnlineIdentifier`'s; 'voltage' falls back to 'current' for a log without voltages.
+    ``keep_history``: keep every estimate (for a plot; 200 bytes per row and method).
+    The cut-off follows the run's ``highest_harmonic_hz`` (read with the log, see
+    :func:`guardid.identify.runs.load_run`); ``log_path`` is read for it only when the run
+    does not carry it.
     """
     online = tuple(m for m in methods if m in ONLINE_METHODS)
     if not online:
@@ -58,12 +64,14 @@ def track_log(
         lam = DEFAULT_LAM
     if beta is None or (click.get_current_context(silent=True) and not _explicit("beta")):
         beta = DEFAULT_BETA
-    harmonic = log_highest_harmonic(log_path) if log_path is not None else None
+    harmonic = getattr(run, "highest_harmonic_hz", None)
+    if not hasattr(run, "highest_harmonic_hz") and log_path is not None:
+        harmonic = log_highest_harmonic(log_path)
     if run.voltage is None or np.asarray(run.voltage).shape != np.asarray(run.q).shape:
         effort = "current"
     tracker = OnlineIdentifier(
         description, online, lam=float(lam), beta=float(beta), highest_harmonic_hz=harmonic,
-        effort=effort,
+        effort=effort, keep_history=keep_history,
     )  # fmt: skip
     period = float(description.sample_period)
     t = (np.asarray(run.ticks) - run.ticks[0]) * period

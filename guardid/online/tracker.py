@@ -221,8 +221,8 @@ class OnlineIdentifier:
         self._rows_buf: deque = deque()  # (t, A, y) of the used rows of the last REPLAY_S
         self._hold_until = dict.fromkeys(self.methods, -math.inf)  # no rows before [s]
         self.keep_history = keep_history
-        self._hist_t: list[float] = []
-        self._hist = {m: [] for m in self.methods}
+        self._hist_t = _Growing(())
+        self._hist = {m: _Growing((len(self.names),)) for m in self.methods}
         self.reports: list[ChangeReport] = []
         self.rows = 0  #: telemetry rows fed
         self.used = 0  #: rows given to the estimators
@@ -234,6 +234,7 @@ class OnlineIdentifier:
         size = self._lag + 2 * self.guard + 8
         self._flags = np.zeros((size, n), dtype=bool)
         self._pending: deque = deque()
+        self._replayed = False
 
     @classmethod
     def for_trajectory(cls, description, methods, trajectory, **kwargs) -> OnlineIdentifier:
@@ -273,6 +274,8 @@ class OnlineIdentifier:
 
         Returns the change reports completed by this row (usually none).
         """
+        if self._replayed:
+            raise RuntimeError("a tracker that replayed a log takes no more rows")
         started = time.perf_counter()
         q = np.asarray(q_rad, dtype=float)
         effort = np.asarray(current_a, dtype=float)
@@ -317,7 +320,19 @@ class OnlineIdentifier:
 
     def feed(self, t_s, q_rad, current_a, voltage_v=None) -> list[ChangeReport]:
         """Feed many rows (N,), (N, n), (N, n), (N, n) in order (a replay); returns their
-        reports."""
+        reports.
+
+        A fresh tracker replays a whole log at the estimators' cost
+        (:func:`guardid.online.replay.replay`: everything that does not depend on the
+        estimators' state is computed over all rows at once), with the estimates and
+        reports that :meth:`update` row by row gives (to round-off); it then takes no more
+        rows. Otherwise the rows go through :meth:`update` one by one."""
+        if self.rows == 0 and len(t_s) > 0:
+            from guardid.online.replay import replay
+
+            return replay(self, t_s, q_rad, current_a, voltage_v)
+        if self._replayed:
+            raise RuntimeError("a tracker that replayed a log takes no more rows")
         reports: list[ChangeReport] = []
         cur = np.asarray(current_a)
         volts = np.asarray(voltage_v) if voltage_v is not None else [None] * len(cur)
@@ -351,6 +366,11 @@ class OnlineIdentifier:
             A, y = A[rows], y[rows]
         A = np.ascontiguousarray(A)
         y = np.ascontiguousarray(y, dtype=float)
+        return self._use_row(t, A, y, rows)
+
+    def _use_row(self, t, A, y, rows) -> list[ChangeReport]:
+        """Detectors and estimators on the joint equations A (m, b), y (m,) [N m] of the
+        row at ``t`` [s] (``rows`` (n,) bool: which joints' equations they are)."""
         self.used += 1
         buf = self._rows_buf
         buf.append((t, A, y))
@@ -400,12 +420,8 @@ class OnlineIdentifier:
 
     def tracks(self) -> dict[str, Track]:
         """Every kept estimate per method (needs ``keep_history``)."""
-        t = np.asarray(self._hist_t, dtype=float)
-        b = len(self.names)
-        return {
-            m: Track(m, t, np.asarray(h, dtype=float).reshape(len(t), b))
-            for m, h in self._hist.items()
-        }
+        t = self._hist_t.array()
+        return {m: Track(m, t, h.array()) for m, h in self._hist.items()}
 
     def status(self, names=("MX2R", "MY2")) -> str:
         """Compact progress text: selected current estimates per method, plus the last change."""
@@ -429,6 +445,30 @@ class OnlineIdentifier:
             for m, tr in tracks.items():
                 for t, row in zip(tr.t, tr.theta, strict=True):
                     w.writerow([f"{t:.4f}", m, *(f"{v:.6g}" for v in row)])
+
+
+class _Growing:
+    """Rows of one shape appended one by one into a float64 array that doubles when full
+    (the history of a long replay: 8 bytes per number, not a Python object per row)."""
+
+    def __init__(self, shape: tuple[int, ...]) -> None:
+        self._buf = np.empty((256, *shape))
+        self.n = 0
+
+    def append(self, row) -> None:
+        if self.n == len(self._buf):
+            grown = np.empty((2 * self.n, *self._buf.shape[1:]))
+            grown[: self.n] = self._buf
+            self._buf = grown
+        self._buf[self.n] = row
+        self.n += 1
+
+    def __len__(self) -> int:
+        return self.n
+
+    def array(self) -> np.ndarray:
+        """A copy of the rows appended so far."""
+        return self._buf[: self.n].copy()
 
 
 def read_tracks_csv(path) -> tuple[tuple[str, ...], dict[str, Track]]:

@@ -1,0 +1,127 @@
+"""A whole log through an :class:`~guardid.online.tracker.OnlineIdentifier` at once.
+
+What :meth:`OnlineIdentifier.update` does row by row and that does not depend on the
+estimators' state is done here over all rows (module docstring of
+:mod:`guardid.online.tracker` for the steps): the motor-equation current
+(:meth:`MotorCurrent.replay`), the causal filter as one ``sosfilt`` call per run of rows
+between gaps from the same steady-state start, the derivatives, the stiction and
+no-count flags with the guard window, and the base regressor, known torques and torques of
+every used row. Only the estimators' recursion and the change detectors stay in a loop,
+over the used rows in order. Rows a gap cuts off (the guard's pending rows) and the rows of
+the warm-up are dropped as the stream drops them, so the estimates and the change reports
+are those of the row-by-row replay (to round-off: tests/test_online_replay.py).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from scipy.signal import sosfilt, sosfilt_zi
+
+CHUNK_ROWS = 20000
+"""Used rows whose regressor is formed at a time (memory: about 0.5 kB per row)."""
+
+
+def replay(tracker, t_s, q_rad, current_a, voltage_v=None) -> list:
+    """Feed ``tracker`` (fresh) the rows t (N,) [s], q (N, n) [rad], currents and voltages
+    (N, n) [A], [V]; returns the change reports. The tracker then takes no more rows."""
+    started = time.perf_counter()
+    tk = tracker
+    t = np.asarray(t_s, dtype=float)
+    q = np.asarray(q_rad, dtype=float)
+    effort = np.asarray(current_a, dtype=float)
+    N, n = q.shape
+    new_run = np.zeros(N, dtype=bool)
+    new_run[0] = True
+    new_run[1:] = np.diff(t) > 1.5 * tk.dt  # a gap restarts the conditioner (as update)
+    if tk.motor is not None:
+        if voltage_v is None:
+            raise ValueError("effort='voltage' needs the voltages of every row")
+        effort = tk.motor.replay(voltage_v, q, effort, new_run)
+    starts = np.flatnonzero(new_run)
+    ends = np.append(starts[1:], N)
+    cond = tk.conditioner
+    lag, g, warmup = tk._lag, tk.guard, tk.warmup
+    flags = np.zeros((N, n), dtype=bool)  # the stream's flag ring, unrolled
+    keep = []  # (row k, sample j = k - lag) of the rows the guard releases
+    for s, e in zip(starts, ends, strict=True):
+        x = np.concatenate([q[s:e], effort[s:e]], axis=1)
+        zi = sosfilt_zi(cond.sos)[:, :, None] * x[0][None, None, :]
+        y, _ = sosfilt(cond.sos, x, axis=0, zi=zi)
+        full = np.concatenate([np.repeat(x[:1], 2, axis=0), y], axis=0)
+        y0, y1, y2 = full[2:], full[1:-1], full[:-2]
+        dt = cond.dt
+        qd = (y0[:, :n] - y2[:, :n]) / (2.0 * dt)
+        qdd = (y0[:, :n] - 2.0 * y1[:, :n] + y2[:, :n]) / (dt * dt)
+        tau = 0.5 * (y0[:, n:] + y1[:, n:]) if cond.period_mean else y1[:, n:]
+        if cond.gain is not None:
+            tau = tau * cond.gain
+        slow = (
+            np.abs(qd) < cond.threshold if cond.threshold is not None else np.zeros_like(qd, bool)
+        )
+        flat = q[s + 1 : e] == q[s : e - 1]  # no count in the period: both rows flagged
+        flags[s + 1 : e] |= flat
+        flags[s : e - 1] |= flat
+        k = np.arange(s, e)
+        j = k - lag
+        warm = j < s + warmup
+        mark = slow if tk.per_joint else np.repeat(slow.any(axis=1, keepdims=True), n, 1)
+        ok = j >= 0
+        flags[j[ok & ~warm]] |= mark[ok & ~warm]
+        flags[j[ok & warm]] = True
+        released = k + g <= e - 1  # the guard's pending rows at a gap or the end are dropped
+        released &= j >= 0  # a sample before the first row is in the warm-up: never used
+        kk, jj = k[released], j[released]
+        # bad joints of a released row: any flag within the guard of its sample, j-g .. j+g;
+        # the segment's flags are final here (a later segment only flags its own warm-up)
+        lo = s - lag - 2 * g
+        seg_flags = flags[max(lo, 0) : e]
+        if lo < 0:
+            seg_flags = np.concatenate([np.zeros((-lo, n), bool), seg_flags])
+        csum = np.concatenate([np.zeros((1, n), np.int64), np.cumsum(seg_flags, axis=0)])
+        bad = (csum[jj + g + 1 - lo] - csum[jj - g - lo]) > 0
+        if not tk.per_joint:
+            bad[:] = bad.any(axis=1, keepdims=True)
+        use = ~bad.all(axis=1)
+        kk, local = kk[use], kk[use] - s
+        keep.append((kk, bad[use], y1[local, :n], qd[local], qdd[local], tau[local]))
+    rows_k, bad, qf, qd, qdd, tau = (np.concatenate([p[i] for p in keep]) for i in range(6))
+    del keep, flags
+    t_use = t[rows_k] - cond.delay_s
+    tk.rows = N
+    tk._k = N - 1
+    tk._replayed = True
+    tk.busy_s += time.perf_counter() - started
+    reports = []
+    use_row = tk._use_row
+    full_rows = np.ones(n, dtype=bool)
+    for c0 in range(0, len(rows_k), CHUNK_ROWS):  # equations a chunk at a time: bounded memory
+        c1 = min(c0 + CHUNK_ROWS, len(rows_k))
+        A, y = _equations(tk, qf[c0:c1], qd[c0:c1], qdd[c0:c1], tau[c0:c1])
+        for i in range(c1 - c0):
+            ok = ~bad[c0 + i]
+            t_i = float(t_use[c0 + i])
+            if ok.all():
+                reports += use_row(t_i, A[i], y[i], full_rows)
+            else:
+                reports += use_row(
+                    t_i, np.ascontiguousarray(A[i][ok]), np.ascontiguousarray(y[i][ok]), ok
+                )
+    tk.busy_s = time.perf_counter() - started
+    return reports
+
+
+def _equations(tk, q, qd, qdd, tau):
+    """Base regressor rows A (M, n, b) of the identified columns and torques y (M, n) [N m]
+    of the used samples, as :meth:`OnlineIdentifier._estimate` forms them one by one."""
+    model = tk.model
+    A_all = model.base_regressor(q, qd, qdd)
+    y = tau
+    if tk._known:
+        y = y - model.known_torque(q, qd, qdd)
+    if tk._fixed is not None:
+        cols, vals = tk._fixed
+        y = y - A_all[:, :, cols] @ vals
+    A = np.ascontiguousarray(A_all[:, :, tk.free])
+    return A, np.ascontiguousarray(y, dtype=float)

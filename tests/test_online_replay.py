@@ -1,0 +1,109 @@
+"""A whole log replayed at once (OnlineIdentifier.feed on a fresh tracker) against the same
+rows fed one by one through update(), the live path: same rows used, estimates to rtol 1e-9
+of each parameter's scale, identical change reports (times equal, values to 1e-9).
+
+The log: 32 s of the tracking excitation from sim://guard with a 1 kg payload at 22 s.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from guardid.capture import capture
+from guardid.cli import main as cli
+from guardid.excitation import load_trajectory
+from guardid.identify.runs import load_run
+from guardid.link import Session, open_port
+from guardid.online import OnlineIdentifier
+from guardid.robot import load_robot
+
+GUARD = load_robot("guard")
+PORT = "sim://guard?seed=4&payload_time=22&payload_mass=1.0&payload_com=0.12,0.02,0"
+RTOL = 1e-9
+
+
+@pytest.fixture(scope="module")
+def payload_log(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("replay")
+    traj = tmp / "traj.yaml"
+    res = CliRunner().invoke(
+        cli, ["excite", "--base-freq", "0.2", "--harmonics", "3", "--starts", "1", "-o", str(traj)]
+    )
+    assert res.exit_code == 0, res.output
+    trajectory = load_trajectory(traj)
+    log = tmp / "pay.csv"
+    port = open_port(PORT)
+    try:
+        session = Session(port)
+        session.handshake()
+        capture(session, GUARD, trajectory, 32.0, log, {"robot": "guard"})
+    finally:
+        port.close()
+    return load_run(log), trajectory
+
+
+def _both(run, trajectory, keep=None, **kwargs):
+    """(row-by-row tracker, its reports, replayed tracker, its reports) on ``run``'s rows
+    (``keep``: a row mask, to make gaps)."""
+    t = (run.ticks - run.ticks[0]) * GUARD.sample_period
+    rows = [t, run.q, run.current, run.voltage]
+    if keep is not None:
+        rows = [x[keep] for x in rows]
+
+    def make():
+        return OnlineIdentifier.for_trajectory(GUARD, ("rls", "hopfield"), trajectory, **kwargs)
+
+    live = make()
+    live_reports = []
+    for tt, q, i, v in zip(*rows, strict=True):
+        live_reports += live.update(float(tt), q, i, v)
+    replayed = make()
+    replay_reports = replayed.feed(*rows)
+    return live, live_reports, replayed, replay_reports
+
+
+def _assert_same(live, live_reports, replayed, replay_reports):
+    assert (replayed.rows, replayed.used) == (live.rows, live.used)
+    for m, tr in live.tracks().items():
+        other = replayed.tracks()[m]
+        assert np.array_equal(tr.t, other.t), m  # the same rows, at the same instants
+        scale = np.abs(tr.theta).max(axis=0)
+        assert np.all(np.abs(other.theta - tr.theta) <= RTOL * scale), m
+    assert len(replay_reports) == len(live_reports) == len(replayed.reports)
+    for a, b in zip(live_reports, replay_reports, strict=True):
+        assert (a.method, a.time_s, a.latest_s, a.alarm_s, a.report_s) == (
+            b.method, b.time_s, b.latest_s, b.alarm_s, b.report_s)  # fmt: skip
+        assert np.allclose(a.after, b.after, rtol=RTOL, atol=0) and str(a) == str(b)
+
+
+def test_replay_gives_the_live_estimates_and_reports(payload_log):
+    run, trajectory = payload_log
+    live, live_reports, replayed, replay_reports = _both(run, trajectory)
+    assert {r.method for r in live_reports} == {"rls", "hopfield"}  # the payload is seen
+    assert all(21.0 < r.at_s < 24.0 for r in live_reports)
+    _assert_same(live, live_reports, replayed, replay_reports)
+
+
+def test_replay_with_gaps_restarts_as_the_stream_does(payload_log):
+    run, trajectory = payload_log
+    keep = np.ones(len(run.ticks), dtype=bool)
+    keep[700:712] = False  # a 12-row gap, then single lost rows
+    keep[[1200, 1203, 1900]] = False
+    _assert_same(*_both(run, trajectory, keep=keep))
+
+
+@pytest.mark.parametrize("options", [{"effort": "current"}, {"per_joint": False}])
+def test_replay_options_match_the_stream(payload_log, options):
+    run, trajectory = payload_log
+    _assert_same(*_both(run, trajectory, **options))
+
+
+def test_a_replayed_tracker_takes_no_more_rows(payload_log):
+    run, trajectory = payload_log
+    tracker = OnlineIdentifier.for_trajectory(GUARD, ("rls",), trajectory)
+    t = (run.ticks - run.ticks[0]) * GUARD.sample_period
+    tracker.feed(t[:200], run.q[:200], run.current[:200], run.voltage[:200])
+    with pytest.raises(RuntimeError, match="takes no more rows"):
+        tracker.update(float(t[200]), run.q[200], run.current[200], run.voltage[200])
