@@ -145,11 +145,14 @@ def identify(
     same options apply to every LOG). Several logs: each is conditioned on its own and the
     identification rows are stacked (one fit), and so are the motor equations.
     """
+    from guardid.commands._status import Status
     from guardid.identify import identify as run_identify
     from guardid.identify.pipeline import stacked_rows
     from guardid.identify.report import plot, table, to_yaml_dict
 
     _check_outputs(log, robot, foreign, output=output, plot_path=plot_path, report_path=report_path)
+    status = Status()
+    status.stage("reading")
     logs, (runs, description) = log, _load_all(log, robot, foreign)
     run, log = runs[0], logs[0]
     if len({r.torque for r in runs}) > 1:
@@ -162,12 +165,15 @@ def identify(
     }
     if several and any(v is None for v in arrays["voltage"] + arrays["ticks"]):
         arrays["voltage"] = arrays["ticks"] = None
+    status.stage("fitting")
     result = run_identify(
         arrays["t"], arrays["q"], arrays["current"], description, methods=methods,
         cutoff_hz=cutoff, beta=beta, lam=lam, gradient_eta=eta, voltage_v=arrays["voltage"],
         ticks=arrays["ticks"], in_current_units=current_units, effort_is_torque=run.torque,
         highest_harmonic_hz=_highest_harmonic(log, run), parallel_filter_hz=parallel_hz,
     )  # fmt: skip
+    if consistent:
+        status.stage("consistent fit")
     fit = _consistent(result, runs, description, run.torque, parallel_hz) if consistent else None
     click.echo(table(result, (*methods, "consistent") if fit else methods))
     if fit:
@@ -177,6 +183,8 @@ def identify(
     for w in result.warnings:
         click.echo(f"warning: {w}", err=True)
     from guardid.online.offline import track_log
+
+    status.stage("tracking")
 
     tracker = track_log(
         run,
@@ -208,6 +216,7 @@ def identify(
             yaml.safe_dump(data, f, sort_keys=False)
         click.echo(f"parameters written to {output}")
     if plot_path or report_path:
+        status.stage("plots")
         cond, A, y = stacked_rows(
             [(r.t, r.q, r.current) for r in runs], description, result.cutoff_hz,
             current_units, run.torque, parallel_filter_hz=parallel_hz,
@@ -222,6 +231,7 @@ def identify(
         page = identify_page(result, description, runs, logs, cond, A, y, tracker)
         write_report(report_path, page, inputs_paths=logs)
         click.echo(f"report written to {report_path}")
+    status.done("identify: done")
     if fit and fit.violations:
         raise GuardidError(
             f"--consistent: the fit is not physically consistent: {fit.violations[0]}"
