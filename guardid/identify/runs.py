@@ -28,6 +28,7 @@ class Run:
     current: np.ndarray
     voltage: np.ndarray | None
     torque: bool = False
+    qd: np.ndarray | None = None  # measured joint velocities [rad/s | m/s] (foreign qd<j>)
 
 
 def load_run(path, sample_period_s: float | None = None, mapping=None, description=None) -> Run:
@@ -88,4 +89,5 @@ def _load_foreign(path, mapping, description) -> Run:
         current=data.effort,
         voltage=data.voltage,
         torque=data.torque,
+        qd=data.qd,
     )
