@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from guardid.conditioning import condition
-from guardid.conditioning.filters import decimation_factor
+from guardid.conditioning.filters import decimation_factor, zero_phase_lowpass
 from guardid.conditioning.options import ConditioningOptions
 from guardid.conditioning.parallel import parallel_filter
 from guardid.dynamics import build_model
@@ -147,33 +147,56 @@ def identification_rows(
 
 
 def _condition_run(run, description, options, cutoff_hz, in_current_units, effort_is_torque,
-                   n_free):  # fmt: skip
-    """Conditioned signals of one run (t, q, effort); falls back to no stiction guard when
-    the guard would leave too few rows (3 per identified parameter, ``n_free``; said in the
-    notes)."""
+                   model, free):  # fmt: skip
+    """One run (t, q, effort[, qd]) conditioned under ``options`` at ``cutoff_hz`` [Hz]:
+    (conditioned signals, A (M, n, b'), y (M, n), y_raw (M, n)) on every conditioned
+    (decimated) sample; the usable rows are ``cond.mask``.
+
+    The regressor is computed on every sample before decimation, and its Coulomb (and
+    Stribeck) columns are low-passed with the same zero-phase filter as the effort: the
+    filtered effort carries the friction jump at a reversal smeared over about a cut-off
+    period, and so does the column then (parallel filtering of the one strongly nonlinear
+    term). Falls back to no stiction guard when the guard would leave too few rows (3 per
+    identified parameter; said in the notes).
+    """
     t, q, effort, *rest = run
     t = np.asarray(t, dtype=float)
     fs = 1.0 / float(np.median(np.diff(t)))
     kw = condition_kwargs(options, fs, cutoff_hz, effort_is_torque, description)
+    k = kw.pop("decimate")
     gain = _gain(description, in_current_units, effort_is_torque)
     kw["qd_measured"] = rest[0] if rest else None
-    cond = condition(t, q, effort, gain=gain, **kw)
-    if cond.mask.sum() <= 3 * n_free and options.stiction_guard_s is None and not effort_is_torque:
+    cond = condition(t, q, effort, gain=gain, decimate=1, **kw)
+    if (cond.mask[::k].sum() <= 3 * len(free) and options.stiction_guard_s is None
+            and not effort_is_torque):  # fmt: skip
         kw.update(stiction_guard_s=0.0, flat_is_stuck=False)
         if options.decimate is None and not options.parallel_filter_hz:
-            kw.pop("decimate")
-        cond = condition(t, q, effort, gain=gain, **kw)
+            k = decimation_factor(fs, cutoff_hz)
+        cond = condition(t, q, effort, gain=gain, decimate=1, **kw)
         cond.notes.append("too few rows with the stiction guard: guard disabled")
-    return cond
+    A, y, raw = _rows_of(model, description, cond, free, in_current_units)
+    names = [model.base.names[i] for i in free]
+    cols = [i for i, n in enumerate(names) if n.startswith(("Fc", "Fs"))]
+    if cols:
+        block = A[:, :, cols]
+        flat = zero_phase_lowpass(block.reshape(len(block), -1), fs, cutoff_hz, options.order)
+        A[:, :, cols] = flat.reshape(block.shape)
+    if k > 1:
+        fields = ("t", "q", "qd", "qdd", "tau", "mask", "stiction", "tau_raw")
+        cond = replace(
+            cond, decimation=k, **{f: getattr(cond, f)[::k] for f in fields},
+            notes=[*cond.notes, f"decimated by {k}: {fs / k:.4g} Hz"],
+        )  # fmt: skip
+        A, y, raw = A[::k], y[::k], raw[::k]
+    return cond, A, y, raw
 
 
-def _parallel(model, description, cond, free, in_current_units, hz):
+def _parallel(cond, A_all, y, free, hz):
     """Gautier's parallel filter at ``hz`` [Hz] on the regressor and the torque of every
     conditioned sample, then decimation (docs/FOREIGN_LOGS.md)."""
     fs = 1.0 / float(np.median(np.diff(cond.t)))
     if not 0.0 < hz < 0.5 * fs:
         raise GuardidError(f"--parallel-filter: {hz:g} Hz must be in (0, {0.5 * fs:g}) Hz")
-    A_all, y, _ = _rows_of(model, description, cond, free, in_current_units)
     sig = (cond.q, cond.qd, cond.qdd, cond.stiction)
     k, (A_all, y, tau, mask, q, qd, qdd, stuck) = parallel_filter(
         fs, hz, A_all, y, cond.tau, cond.mask, *sig
@@ -200,15 +223,14 @@ def cutoff_scores(runs, description, options, cands, blocks, in_current_units, e
     common = options.with_(parallel_filter_hz=None)
     k = condition_kwargs(common, fs, max(cands), effort_is_torque, description)["decimate"]
     common = replace(common, decimate=k, parallel_filter_hz=None)
-    flags = (in_current_units, effort_is_torque, len(free))
+    flags = (in_current_units, effort_is_torque, model, free)
     middle = cands[len(cands) // 2]  # evaluation rows: those usable under the middle one
-    ref = [_condition_run(r, description, common, middle, *flags) for r in runs]
+    ref = [_condition_run(r, description, common, middle, *flags)[0] for r in runs]
     scores, thetas = [], []
     for fc in cands:
         parts = []  # (block id, A_fit, y_fit, A_eval, y_raw_eval)
         for r_i, (run, rc) in enumerate(zip(runs, ref, strict=True)):
-            c = _condition_run(run, description, common, fc, *flags)
-            A, y, raw = _rows_of(model, description, c, free, in_current_units)
+            c, A, y, raw = _condition_run(run, description, common, fc, *flags)
             n = len(c.t)
             block = np.minimum((np.arange(n) * blocks) // max(n, 1), blocks - 1)
             evaluate = rc.mask[:n] if len(rc.mask) >= n else np.zeros(n, bool)
@@ -293,13 +315,12 @@ def stacked_rows(
     used = replace(options, cutoff_hz=float(cutoff))
     conds, As, ys = [], [], []
     for run in runs:
-        c = _condition_run(run, description, used, cutoff, in_current_units, effort_is_torque,
-                           len(free))  # fmt: skip
+        c, A, y, _ = _condition_run(run, description, used, cutoff, in_current_units,
+                                    effort_is_torque, model, free)  # fmt: skip
         if used.parallel_filter_hz:
-            c, A, y = _parallel(model, description, c, free, in_current_units,
-                                used.parallel_filter_hz)  # fmt: skip
+            c, A, y = _parallel(c, A, y, free, used.parallel_filter_hz)
         else:
-            A, y, _ = _rows_of(model, description, c, free, in_current_units, c.mask)
+            A, y = A[c.mask], y[c.mask]
         conds.append(c)
         As.append(A)
         ys.append(y)
