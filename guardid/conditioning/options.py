@@ -30,6 +30,9 @@ class ConditioningOptions:
         None = off.
     order : Butterworth order (applied forward and backward).
     edge_s : rows within this time of either end are dropped [s]; None = 1 / cut-off.
+    friction_filter : low-pass the regressor's Coulomb (and Stribeck) columns with the same
+        filter as the effort (parallel filtering of the friction jump); None = chosen with
+        the cut-off by cross-validation (when the cut-off is given: off).
     """
 
     cutoff_hz: float | None = None
@@ -40,6 +43,7 @@ class ConditioningOptions:
     parallel_filter_hz: float | None = None
     order: int = DEFAULT_ORDER
     edge_s: float | None = None
+    friction_filter: bool | None = None
 
     def with_(self, **changes) -> ConditioningOptions:
         """A copy with ``changes`` applied (None values in ``changes`` are ignored)."""
@@ -69,7 +73,7 @@ class ConditioningOptions:
             if value is None:
                 out[key] = None
                 continue
-            if key == "flat_is_stuck":
+            if key in ("flat_is_stuck", "friction_filter"):
                 if not isinstance(value, bool):
                     raise ConfigError(f"{where}.{key}: expected true or false, got {value!r}")
                 out[key] = value

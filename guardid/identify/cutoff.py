@@ -16,7 +16,8 @@ rms(tau_meas). The measured effort's noise does not depend on the candidate, so 
 trades the two ways a cut-off fails: too low, the model's prediction lacks the torque the
 filter removed from the motion; too high, the differentiated noise enters the regressor
 (biasing least squares toward zero) and its predictions. The candidate with the lowest
-score is used, or the lowest candidate scoring within :data:`TOLERANCE` of it (the smoother
+score is used (each candidate fitted twice when the model has Coulomb columns: as they
+are, and low-passed like the effort, the better one kept), or the lowest candidate scoring within :data:`TOLERANCE` of it (the smoother
 conditioning when the data cannot tell them apart, as in the one-standard-error rule of
 cross-validation). Every candidate is scored on the same instants (one decimation for all) and
 the same rows (those usable under the middle candidate's conditioning).
@@ -55,6 +56,14 @@ class CutoffChoice:
     scores: list[float] = field(default_factory=list)
     thetas: list[np.ndarray] = field(default_factory=list)
     bandwidth_hz: float = math.nan
+    friction_filters: list[bool] = field(default_factory=list)
+
+    @property
+    def friction_filter(self) -> bool:
+        """Whether the chosen candidate low-passes the Coulomb columns."""
+        if not self.friction_filters:
+            return False
+        return self.friction_filters[self.candidates.index(self.cutoff_hz)]
 
     def table(self) -> str:
         """One line: candidate [Hz] = held-out score, the chosen one starred."""
@@ -88,7 +97,8 @@ def choose_cutoff_cv(runs, score_fn, fs_hz: float, highest_harmonic_hz=None) -> 
     """Cross-validated cut-off (module docstring).
 
     ``runs``: (t [s], q, effort) per run. ``score_fn(candidates, blocks_per_run)`` returns,
-    per candidate, (held-out relative rms error, full-data estimate) (see
+    per candidate, (held-out relative rms error, full-data estimate, friction columns filtered)
+    (see
     :func:`guardid.identify.pipeline.cutoff_scores`). ``fs_hz``: the logs' sample rate [Hz].
     """
     bandwidth = motion_bandwidth(runs, highest_harmonic_hz)
@@ -100,7 +110,7 @@ def choose_cutoff_cv(runs, score_fn, fs_hz: float, highest_harmonic_hz=None) -> 
         preferred = clip_cutoff(HARMONIC_FACTOR * float(highest_harmonic_hz), fs_hz)
         cands = sorted(set(cands) | {preferred})
     blocks = max(1, math.ceil(MIN_BLOCKS / len(runs)))
-    scores, thetas = score_fn(cands, blocks)
+    scores, thetas, filters = score_fn(cands, blocks)
     s = np.asarray(scores, dtype=float)
     folds = blocks * len(runs)
     src = "excitation's highest harmonic" if highest_harmonic_hz else "positions' 99.5 % band"
@@ -111,7 +121,7 @@ def choose_cutoff_cv(runs, score_fn, fs_hz: float, highest_harmonic_hz=None) -> 
     if not np.any(np.isfinite(s)):
         fc = preferred or cands[len(cands) // 2]
         return CutoffChoice(fc, f"no candidate could be scored ({how}); middle one taken",
-                            cands, list(scores), list(thetas), bandwidth)  # fmt: skip
+                            cands, list(scores), list(thetas), bandwidth, filters)  # fmt: skip
     near_best = s <= (1.0 + TOLERANCE) * np.nanmin(s)
     if preferred is not None and near_best[cands.index(preferred)]:
         best = cands.index(preferred)
@@ -120,4 +130,6 @@ def choose_cutoff_cv(runs, score_fn, fs_hz: float, highest_harmonic_hz=None) -> 
     else:
         best = int(np.flatnonzero(near_best)[0])
         why = f"lowest held-out error of {how}"
-    return CutoffChoice(cands[best], why, cands, list(scores), list(thetas), bandwidth)
+    if filters[best]:
+        why += "; the Coulomb columns low-passed like the effort predicted it better"
+    return CutoffChoice(cands[best], why, cands, list(scores), list(thetas), bandwidth, filters)

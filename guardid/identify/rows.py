@@ -147,16 +147,16 @@ def identification_rows(
 
 
 def _condition_run(run, description, options, cutoff_hz, in_current_units, effort_is_torque,
-                   model, free):  # fmt: skip
+                   model, free, friction_filter=False):  # fmt: skip
     """One run (t, q, effort[, qd]) conditioned under ``options`` at ``cutoff_hz`` [Hz]:
-    (conditioned signals, A (M, n, b'), y (M, n), y_raw (M, n)) on every conditioned
-    (decimated) sample; the usable rows are ``cond.mask``.
+    (conditioned signals, A (M, n, b'), y (M, n), y_raw (M, n), A_plain (M, n, b')) on every
+    conditioned (decimated) sample; the usable rows are ``cond.mask``.
 
-    The regressor is computed on every sample before decimation, and its Coulomb (and
-    Stribeck) columns are low-passed with the same zero-phase filter as the effort: the
-    filtered effort carries the friction jump at a reversal smeared over about a cut-off
-    period, and so does the column then (parallel filtering of the one strongly nonlinear
-    term). Falls back to no stiction guard when the guard would leave too few rows (3 per
+    The regressor is computed on every sample before decimation. With ``friction_filter``
+    its Coulomb (and Stribeck) columns are low-passed with the same zero-phase filter as the
+    effort: the filtered effort carries the friction jump at a reversal smeared over about a
+    cut-off period, and so does the column then (parallel filtering of the one strongly
+    nonlinear term). ``A_plain`` is the regressor without that (the model's prediction). Falls back to no stiction guard when the guard would leave too few rows (3 per
     identified parameter; said in the notes).
     """
     t, q, effort, *rest = run
@@ -175,20 +175,28 @@ def _condition_run(run, description, options, cutoff_hz, in_current_units, effor
         cond = condition(t, q, effort, gain=gain, decimate=1, **kw)
         cond.notes.append("too few rows with the stiction guard: guard disabled")
     A, y, raw = _rows_of(model, description, cond, free, in_current_units)
-    names = [model.base.names[i] for i in free]
-    cols = [i for i, n in enumerate(names) if n.startswith(("Fc", "Fs"))]
-    if cols:
+    plain = A
+    cols = friction_columns(model, free)
+    if cols and friction_filter:
+        A = A.copy()
         block = A[:, :, cols]
         flat = zero_phase_lowpass(block.reshape(len(block), -1), fs, cutoff_hz, options.order)
         A[:, :, cols] = flat.reshape(block.shape)
+        cond.notes.append("Coulomb columns low-passed like the effort")
     if k > 1:
         fields = ("t", "q", "qd", "qdd", "tau", "mask", "stiction", "tau_raw")
         cond = replace(
             cond, decimation=k, **{f: getattr(cond, f)[::k] for f in fields},
             notes=[*cond.notes, f"decimated by {k}: {fs / k:.4g} Hz"],
         )  # fmt: skip
-        A, y, raw = A[::k], y[::k], raw[::k]
-    return cond, A, y, raw
+        A, y, raw, plain = A[::k], y[::k], raw[::k], plain[::k]
+    return cond, A, y, raw, plain
+
+
+def friction_columns(model, free) -> list[int]:
+    """Positions (among the identified columns) of the Coulomb and Stribeck columns."""
+    names = [model.base.names[i] for i in free]
+    return [i for i, n in enumerate(names) if n.startswith(("Fc", "Fs"))]
 
 
 def _parallel(cond, A_all, y, free, hz):
@@ -226,22 +234,30 @@ def cutoff_scores(runs, description, options, cands, blocks, in_current_units, e
     flags = (in_current_units, effort_is_torque, model, free)
     middle = cands[len(cands) // 2]  # evaluation rows: those usable under the middle one
     ref = [_condition_run(r, description, common, middle, *flags)[0] for r in runs]
-    scores, thetas = [], []
+    variants = [options.friction_filter]
+    if options.friction_filter is None:
+        variants = [False, True] if friction_columns(model, free) else [False]
+    scores, thetas, chosen = [], [], []
     for fc in cands:
-        parts = []  # (block id, A_fit, y_fit, A_eval, y_raw_eval)
-        for r_i, (run, rc) in enumerate(zip(runs, ref, strict=True)):
-            c, A, y, raw = _condition_run(run, description, common, fc, *flags)
-            n = len(c.t)
-            block = np.minimum((np.arange(n) * blocks) // max(n, 1), blocks - 1)
-            evaluate = rc.mask[:n] if len(rc.mask) >= n else np.zeros(n, bool)
-            for b in range(blocks):
-                sel = block == b
-                parts.append(((r_i, b), A[sel & c.mask], y[sel & c.mask], A[sel & evaluate],
-                              raw[sel & evaluate]))  # fmt: skip
-        scores_fc, theta_fc = _kfold(parts, min_rows=3 * len(free))
-        scores.append(scores_fc)
-        thetas.append(theta_fc)
-    return scores, thetas
+        best = (np.inf, None, False)
+        for ff in variants:
+            parts = []  # (block id, A_fit, y_fit, A_eval, y_raw_eval)
+            for r_i, (run, rc) in enumerate(zip(runs, ref, strict=True)):
+                c, A, y, raw, plain = _condition_run(run, description, common, fc, *flags, ff)
+                n = len(c.t)
+                block = np.minimum((np.arange(n) * blocks) // max(n, 1), blocks - 1)
+                evaluate = rc.mask[:n] if len(rc.mask) >= n else np.zeros(n, bool)
+                for b in range(blocks):
+                    sel = block == b
+                    parts.append(((r_i, b), A[sel & c.mask], y[sel & c.mask],
+                                  plain[sel & evaluate], raw[sel & evaluate]))  # fmt: skip
+            score, theta = _kfold(parts, min_rows=3 * len(free))
+            if not score >= best[0]:  # NaN never wins
+                best = (score, theta, bool(ff))
+        scores.append(best[0] if np.isfinite(best[0]) else np.nan)
+        thetas.append(best[1])
+        chosen.append(best[2])
+    return scores, thetas, chosen
 
 
 def _kfold(parts, min_rows: int):
@@ -312,11 +328,14 @@ def stacked_rows(
 
         choice = choose_cutoff_cv(runs, score, fs, highest_harmonic_hz)
         cutoff = choice.cutoff_hz
-    used = replace(options, cutoff_hz=float(cutoff))
+    ff = options.friction_filter
+    if ff is None:
+        ff = bool(choice.friction_filter) if choice is not None else False
+    used = replace(options, cutoff_hz=float(cutoff), friction_filter=ff)
     conds, As, ys = [], [], []
     for run in runs:
-        c, A, y, _ = _condition_run(run, description, used, cutoff, in_current_units,
-                                    effort_is_torque, model, free)  # fmt: skip
+        c, A, y, _, _ = _condition_run(run, description, used, cutoff, in_current_units,
+                                       effort_is_torque, model, free, ff)  # fmt: skip
         if used.parallel_filter_hz:
             c, A, y = _parallel(c, A, y, free, used.parallel_filter_hz)
         else:
