@@ -7,9 +7,11 @@ import numpy as np
 
 # the lab's published values (README of shared/realdata), friction with a smooth Coulomb
 # term cf tanh(qd / 0.01 rad/s) as in guardid's dfki_double_pendulum.yaml
-P = {"m1": 0.5593806151425046, "m2": 0.6043459469186889, "r1": 0.3, "r2": 0.18377686083653508,
-     "I1": 0.053470810264216295, "I2": 0.02392374528789766, "Ir": 7.659297952841183e-05,
-     "g": 9.81, "gr": 6.0, "l1": 0.3, "b1": 0.05, "b2": 0.02, "cf1": 0.093, "cf2": 0.078}  # fmt: skip
+P = {
+    "m1": 0.5593806151425046, "m2": 0.6043459469186889, "r1": 0.3, "r2": 0.18377686083653508,
+    "I1": 0.053470810264216295, "I2": 0.02392374528789766, "Ir": 7.659297952841183e-05,
+    "g": 9.81, "gr": 6.0, "l1": 0.3, "b1": 0.05, "b2": 0.02, "cf1": 0.093, "cf2": 0.078,
+}  # fmt: skip
 V_SCALE = 0.05  # rad/s
 QUANTUM = 2 * np.pi / 2**15  # rad, a 15-bit absolute encoder
 TORQUE_NOISE = 0.005  # N m (1-sigma; 0.1-0.5 % of the torque)

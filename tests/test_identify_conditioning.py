@@ -47,8 +47,11 @@ def test_default_conditioning_recovers_the_truth(robot, fs, lo, hi):
     r, ls, tr = _fit(robot, fs, lo, hi)
     well = ls.rel_std_pct < 5.0
     rel = np.abs(ls.theta - tr) / np.abs(tr)
-    report = {n: f"{100 * e:+.2f} % (std {s:.2f} %)"
-              for n, e, s in zip(r.names, (ls.theta - tr) / tr, ls.rel_std_pct, strict=True)}  # fmt: skip
+    errors = (ls.theta - tr) / tr
+    report = {
+        n: f"{100 * e:+.2f} % (std {s:.2f} %)"
+        for n, e, s in zip(r.names, errors, ls.rel_std_pct, strict=True)
+    }
     assert well.sum() >= 5, report
     assert np.all(rel[well] < 0.02), (r.cutoff_hz, report)
     assert np.all(np.abs(ls.theta - tr)[well] < 3 * ls.std[well]), (r.cutoff_hz, report)

@@ -17,9 +17,10 @@ trades the two ways a cut-off fails: too low, the model's prediction lacks the t
 filter removed from the motion; too high, the differentiated noise enters the regressor
 (biasing least squares toward zero) and its predictions. The candidate with the lowest
 score is used (each candidate fitted twice when the model has Coulomb columns: as they
-are, and low-passed like the effort, the better one kept), or the lowest candidate scoring within :data:`TOLERANCE` of it (the smoother
-conditioning when the data cannot tell them apart, as in the one-standard-error rule of
-cross-validation). Every candidate is scored on the same instants (one decimation for all) and
+are, and low-passed like the effort, the better one kept), or the lowest candidate scoring
+within :data:`TOLERANCE` of it (the smoother conditioning when the data cannot tell them
+apart, as in the one-standard-error rule of cross-validation). Every candidate is scored on
+the same instants (one decimation for all) and
 the same rows (those usable under the middle candidate's conditioning).
 """
 

@@ -156,7 +156,8 @@ def _condition_run(run, description, options, cutoff_hz, in_current_units, effor
     its Coulomb (and Stribeck) columns are low-passed with the same zero-phase filter as the
     effort: the filtered effort carries the friction jump at a reversal smeared over about a
     cut-off period, and so does the column then (parallel filtering of the one strongly
-    nonlinear term). ``A_plain`` is the regressor without that (the model's prediction). Falls back to no stiction guard when the guard would leave too few rows (3 per
+    nonlinear term). ``A_plain`` is the regressor without that (the model's prediction).
+    Falls back to no stiction guard when the guard would leave too few rows (3 per
     identified parameter; said in the notes).
     """
     t, q, effort, *rest = run
