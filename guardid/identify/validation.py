@@ -126,8 +126,11 @@ def reference_set(path, description) -> ParameterSet:
         out[name] = float(value)
     model = build_model(desc)
     nominal = dict(zip(names, model.base.values(model.params), strict=True))
-    defaulted = [n for n in names if n not in out]
-    out.update({n: float(nominal[n]) for n in defaulted})
+    from guardid.identify.rows import free_columns
+
+    identified = {model.base.names[i] for i in free_columns(model, desc)}
+    defaulted = [n for n in names if n not in out and n in identified]
+    out.update({n: float(nominal[n]) for n in names if n not in out})
     label = str(data.get("label") or path)
     return ParameterSet(label, out, desc, defaulted)
 
