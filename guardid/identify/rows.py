@@ -195,9 +195,16 @@ def _condition_run(run, description, options, cutoff_hz, in_current_units, effor
 
 
 def friction_columns(model, free) -> list[int]:
-    """Positions (among the identified columns) of the Coulomb and Stribeck columns."""
+    """Positions (among the identified columns) of the Coulomb and Stribeck columns of the
+    joints with a smooth friction model (a sign model's rows near reversals are dropped:
+    its jump is never inside the rows, and a stuck joint does not follow it anyway)."""
     names = [model.base.names[i] for i in free]
-    return [i for i, n in enumerate(names) if n.startswith(("Fc", "Fs"))]
+    smooth = {
+        str(j + 1)
+        for j, joint in enumerate(model.description.joints)
+        if joint.friction is not None and joint.friction.model != "sign"
+    }
+    return [i for i, n in enumerate(names) if n.startswith(("Fc", "Fs")) and n[2:] in smooth]
 
 
 def _parallel(cond, A_all, y, free, hz):
