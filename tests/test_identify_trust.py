@@ -159,3 +159,56 @@ def test_prismatic_units_in_the_report(tmp_path):
                                     "time=s,q1=z,tau1=f"])  # fmt: skip
     assert res.exit_code == 0, res.output
     assert "rms [N]" in res.output and "N m" not in res.output
+
+
+def test_validation_metric_stacks_joints_and_names_a_passive_joint():
+    """Stacked error and per-joint figures worked out by hand on a two-joint axis pair."""
+    from types import SimpleNamespace
+
+    from guardid.identify.validation import ParameterSet, score_sets
+
+    d = load_robot("dfki_double_pendulum")
+    m = build_model(d)
+    rng = np.random.default_rng(3)
+    q, qd, qdd = rng.normal(0, 1, (3, 200, 2))
+    theta = m.base.values(m.params)
+    tau = m.base_regressor(q, qd, qdd) @ theta
+    tau[:, 1] = 0.01 * rng.normal(size=200)  # a passive elbow: only sensor noise
+    cond = SimpleNamespace(q=q, qd=qd, qdd=qdd, tau=tau, mask=np.ones(200, bool))
+    values = dict(zip(m.base.names, theta, strict=True))
+    (s,) = score_sets([cond], [ParameterSet("truth", values, d)], ["run"])
+    model_tau = m.base_regressor(q, qd, qdd) @ theta
+    r = tau - model_tau  # joint 1: 0; joint 2: the noise minus the elbow's model torque
+    assert s.stacked == pytest.approx(np.sqrt(np.sum(r**2) / np.sum(tau**2)), rel=1e-12)
+    assert s.rms[0] == pytest.approx(0.0, abs=1e-12)
+    assert s.rms[1] == pytest.approx(np.sqrt(np.mean(r[:, 1] ** 2)), rel=1e-12)
+    assert list(s.passive) == [False, True] and np.isnan(s.relative[1])
+
+
+def test_measured_velocities_enter_the_fit():
+    """Exact measured velocities (qd<j>) replace the differentiated positions: the estimates
+    still land on the truth, and the notes say so."""
+    t, q, tau = synthetic.log(500, 0.5, 5.0, 6, duration_s=20.0)
+    _, qd, _ = synthetic.motion(t, 0.5, 5.0, 6)
+    path = load_robot("dfki_double_pendulum").source
+    data = yaml.safe_load(open(path, encoding="utf-8"))
+    for j in data["joints"]:
+        j["friction"]["velocity_scale"] = synthetic.V_SCALE
+    r = identify(t, q, tau, parse_robot(data, "s.yaml"), methods=("ls",),
+                 effort_is_torque=True, qd=qd)  # fmt: skip
+    assert any("measured velocities used" in n for n in r.notes)
+    ls, tr = r.results["ls"], np.array([synthetic.truth()[n] for n in r.names])
+    well = ls.rel_std_pct < 5
+    assert np.all(np.abs(ls.theta - tr)[well] < 0.02 * np.abs(tr)[well])
+
+
+def test_headerless_csv_reads_every_line(tmp_path):
+    from guardid.identify.foreign import parse_mapping, read_foreign
+
+    rows = np.column_stack([np.arange(12) * 0.01, np.arange(12) * 0.1, np.arange(12) * 2.0])
+    path = tmp_path / "h.csv"
+    np.savetxt(path, rows, delimiter=",")
+    data = read_foreign(path, parse_mapping(["time=1,q1=2,tau1=3"]), 1, "axis")
+    assert len(data.t) == 12 and data.q[0, 0] == 0.0 and data.effort[-1, 0] == 22.0
+    with pytest.raises(Exception, match="column 4 not found"):
+        read_foreign(path, parse_mapping(["time=1,q1=4,tau1=3"]), 1, "axis")
