@@ -186,8 +186,9 @@ def _condition_run(run, description, options, cutoff_hz, in_current_units, effor
         cond.notes.append("Coulomb columns low-passed like the effort")
     if k > 1:
         fields = ("t", "q", "qd", "qdd", "tau", "mask", "stiction", "tau_raw")
+        dropped = {key: int(round(v / k)) for key, v in cond.dropped.items()}
         cond = replace(
-            cond, decimation=k, **{f: getattr(cond, f)[::k] for f in fields},
+            cond, decimation=k, **{f: getattr(cond, f)[::k] for f in fields}, dropped=dropped,
             notes=[*cond.notes, f"decimated by {k}: {fs / k:.4g} Hz"],
         )  # fmt: skip
         A, y, raw, plain = A[::k], y[::k], raw[::k], plain[::k]
