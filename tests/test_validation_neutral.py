@@ -163,3 +163,18 @@ def test_validate_scores_params_and_reference_side_by_side(folds):
     neutral = (folds[2]["guardid"], folds[2]["published"])
     assert (stacked[0] < stacked[1]) == (neutral[0] < neutral[1]), (res.output, neutral)
     assert "the same rows for every parameter set" in res.output
+
+
+def test_identify_cv_prints_the_leave_one_run_out_table(folds):
+    """``identify --cv`` over the three runs: one line per held-out run and the mean; its LS
+    figures (guardid's own conditioning) agree with the independent evaluator's to 0.02."""
+    logs = [str(DATA / f"trajectory_{k:02d}.csv") for k in range(3)]
+    res = CliRunner().invoke(main, ["identify", *logs, "--robot", "dfki_double_pendulum",
+                                    "--columns", COLUMNS, "--method", "ls", "--cv"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    lines = res.output.splitlines()
+    rows = [x for x in lines if "trajectory_0" in x]
+    assert len(rows) == 3 and lines[-1].startswith("mean")
+    for k, row in enumerate(rows):
+        cv = float(row.split()[-1].rstrip("%")) / 100
+        assert abs(cv - folds[k]["guardid"]) < 0.02, (row, folds[k])
