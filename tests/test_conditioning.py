@@ -67,7 +67,7 @@ def test_derivatives_from_quantised_encoder():
     t = np.arange(0.0, DURATION, T)
     q_meas = encoder_positions(t)
     out = condition(t, q_meas, np.zeros_like(q_meas), highest_harmonic_hz=F_MAX, decimate=1)
-    assert out.cutoff_hz == pytest.approx(5 * F_MAX)
+    assert out.cutoff_hz == pytest.approx(8 * F_MAX)  # HARMONIC_FACTOR
     q, qd, qdd = analytic(out.t)
     inside = _interior(out.t)
     for est, ref, tol in ((out.q, q, 0.002), (out.qd, qd, 0.005), (out.qdd, qdd, 0.02)):
@@ -182,7 +182,7 @@ def test_gain_none_keeps_current_units():
 def test_cutoff_from_bandwidth():
     t = np.arange(0.0, DURATION, T)
     q_meas = encoder_positions(t)
-    assert choose_cutoff(t, q_meas, highest_harmonic_hz=0.4) == pytest.approx(2.0)
+    assert choose_cutoff(t, q_meas, highest_harmonic_hz=0.4) == pytest.approx(3.2)  # 8 x 0.4
     auto = choose_cutoff(t, q_meas)
     assert 2 * 0.25 <= auto <= 2 * 0.45  # 99.5 % of the energy lies below 0.4 Hz
     assert choose_cutoff(t, q_meas, highest_harmonic_hz=100.0) == pytest.approx(0.4 / (2 * T))

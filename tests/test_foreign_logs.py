@@ -148,7 +148,7 @@ def test_foreign_csv_and_mat_match_native_path(tmp_path, guard_log):
             assert a["ke_v_s_per_rad"] == pytest.approx(b["ke_v_s_per_rad"], rel=1e-6)
     # and validate reads the foreign layout too
     res = cli("validate", foreign, "--params", native, "--columns", mapping)
-    assert res.exit_code == 0 and "LS        d_tau" in res.output, res.output
+    assert res.exit_code == 0 and f"{native}:LS" in res.output, res.output
 
 
 # --- synthesised torque: known truth ---------------------------------------------------------
@@ -217,12 +217,20 @@ def _dfki(name):
 
 @pytest.fixture(scope="module")
 def dfki_params(tmp_path_factory):
-    """Identify every DFKI run through the CLI at the README's 5 Hz: {run: (params, output)}."""
+    """Identify every DFKI run through the CLI at the README's 5 Hz: {run: (params, output)}.
+
+    The robot is the shipped YAML with the friction offsets modelled (``offset: 0``): the
+    torque sensor's bias differs from run to run, and a single run's fit needs it (the
+    shipped YAML follows the lab's model, without offsets, which predicts other runs better).
+    """
     out = {}
+    robot = tmp_path_factory.mktemp("robot") / "dfki_offsets.yaml"
+    shipped = Path(__file__).parents[1] / "guardid" / "robots" / "dfki_double_pendulum.yaml"
+    robot.write_text(shipped.read_text().replace("offset: null", "offset: 0.0"))
     for k in range(3):
         log = _dfki(f"trajectory_0{k}.csv")
         params = tmp_path_factory.mktemp("dfki") / f"params_0{k}.yaml"
-        res = cli("identify", log, "--robot", "dfki_double_pendulum", "--columns", DFKI_COLUMNS,
+        res = cli("identify", log, "--robot", robot, "--columns", DFKI_COLUMNS,
                   "--cutoff", "5", "--parallel-filter", "3", "--method", "ls,wls",
                   "-o", params)  # fmt: skip
         assert res.exit_code == 0, res.output
@@ -239,11 +247,11 @@ def test_dfki_cli_identifies_and_validates(dfki_params, tmp_path):
             f"{n} {got[n]:.4f} ({100 * (got[n] - v) / v:+.1f} %)" for n, v in DFKI_PUB4.items()
         ))  # fmt: skip
         assert all(np.isfinite(got[n]) and got[n] > 0 for n in DFKI_PUB4)
-    # the robot name stored in params.yaml is a shipped name: validate needs no --robot
+    # params.yaml stores the robot description itself: validate needs no --robot
     res = cli("validate", _dfki("trajectory_01.csv"), "--params", dfki_params[2][0],
               "--columns", DFKI_COLUMNS)  # fmt: skip
     assert res.exit_code == 0, res.output
-    assert "LS        d_tau" in res.output and "shoulder" in res.output
+    assert ":LS" in res.output and "shoulder rms [N m]" in res.output
     report.append("validate trajectory_01 with params of 02:\n" + res.output.strip())
     print("\n".join(report))
 

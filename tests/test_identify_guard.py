@@ -81,7 +81,7 @@ def test_rls_ends_on_ls(result):
 
 def test_dtau_on_second_run_below_5pct(result, logs):
     run = load_run(logs["b"])
-    _, A, y = identification_rows(run.t, run.q, run.current, GUARD, result.cutoff_hz)
+    _, A, y = identification_rows(run.t, run.q, run.current, GUARD, result.conditioning)
     for m in ("ls", "wls"):
         assert d_tau(A, y, result.results[m].theta) < 0.05
 

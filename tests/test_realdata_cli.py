@@ -50,9 +50,9 @@ def lab4(params_path) -> np.ndarray:
 
 
 def ls_d_tau(output: str) -> float:
-    """d_tau [-] of the LS line of ``guardid validate``'s output."""
-    line = next(x for x in output.splitlines() if x.startswith("LS "))
-    return float(line.split("d_tau")[1].split("%")[0]) / 100.0
+    """Stacked relative rms error [-] of the LS line of ``guardid validate``'s output."""
+    line = next(x for x in output.splitlines() if ":LS " in x)
+    return float(line.split(":LS")[1].split("%")[0]) / 100.0
 
 
 def test_cli_three_runs_within_10_percent(tmp_path):
@@ -66,7 +66,7 @@ def test_cli_three_runs_within_10_percent(tmp_path):
         print(f"  {n:14s} {g:.4f}  published {v:.4f}  ({e:+.1f} %)")
     assert np.all(np.abs(err) < 10.0), err
     out = cli("validate", *runs(2), "--params", params, "--columns", COLUMNS)
-    assert "LS        d_tau" in out and "elbow" in out
+    assert ":LS " in out and "elbow rms [N m]" in out
     print("guardid validate trajectory_02 (params of 00+01+02): " + out.strip())
 
 

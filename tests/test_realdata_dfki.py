@@ -40,7 +40,11 @@ def lab_torque(q, qd, qdd, p=PUB, friction="atan"):
     h2 = m2 * l1 * r2 * s2 * qd[:, 0] ** 2
     g12 = m2 * r2 * g * np.sin(q[:, 0] + q[:, 1])
     g1 = (m1 * r1 + m2 * l1) * g * np.sin(q[:, 0]) + g12
-    fr = (lambda v: np.arctan(100 * v)) if friction == "atan" else np.sign
+    fr = {
+        "atan": lambda v: np.arctan(100 * v),
+        "tanh": lambda v: np.tanh(v / 0.01),  # the shipped YAML's smooth Coulomb shape
+        "sign": np.sign,
+    }[friction]
     t1 = m11 * qdd[:, 0] + m12 * qdd[:, 1] + h1 + g1 + p["b1"] * qd[:, 0] + p["cf1"] * fr(qd[:, 0])
     t2 = m12 * qdd[:, 0] + m22 * qdd[:, 1] + h2 + g12 + p["b2"] * qd[:, 1] + p["cf2"] * fr(qd[:, 1])
     return np.column_stack([t1, t2])
@@ -79,12 +83,12 @@ def test_yaml_reproduces_closed_form_model(model):
     q = rng.uniform(-np.pi, np.pi, (200, 2))
     qd, qdd = rng.normal(0, 3, (200, 2)), rng.normal(0, 20, (200, 2))
     ours = model.inverse_dynamics(q, qd, qdd)
-    np.testing.assert_allclose(ours, lab_torque(q, qd, qdd, PUB, "sign"), atol=1e-12)
+    np.testing.assert_allclose(ours, lab_torque(q, qd, qdd, PUB, "tanh"), atol=1e-12)
     # the base regressor reproduces the full closed form (Ir included) exactly
     ir = PUB["Ir"]
     theta = model.base.values(model.params)
     pred = regressor_with_rotor(model, q, qd, qdd) @ theta
-    np.testing.assert_allclose(pred, lab_torque(q, qd, qdd, PUB, "sign"), atol=1e-12)
+    np.testing.assert_allclose(pred, lab_torque(q, qd, qdd, PUB, "tanh"), atol=1e-12)
     lab4, ir_back = to_lab(model, theta)
     np.testing.assert_allclose(lab4, PUB4, rtol=1e-3)
     assert ir_back == pytest.approx(ir)

@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-import numpy as np
 import yaml
 
 from guardid.errors import ConfigError, GuardidError
@@ -44,25 +43,27 @@ def _foreign_options(f):
 
 
 def _load(log, robot_opt, columns, sample_period, mat_var, mat_columns):
-    """(run, description): a guardid log, or a foreign one when a mapping option is given."""
+    """(run, description): a guardid log, or a foreign one when a mapping option is given.
+    ``robot_opt``: a shipped name or YAML path, a loaded description, or None (the log's)."""
     from guardid.identify.runs import load_run
     from guardid.robot import load_robot
 
+    given = robot_opt if robot_opt is not None and not isinstance(robot_opt, (str, Path)) else None
     if not (columns or sample_period is not None or mat_var or mat_columns):
         run = load_run(log)
-        return run, _robot_for(run, robot_opt)
+        return run, given or _robot_for(run, robot_opt)
     from guardid.identify.foreign import parse_mapping
 
     mapping = parse_mapping(columns, sample_period, mat_var, mat_columns)
     if not robot_opt:
         raise ConfigError(f"{log}: a foreign log names no robot: give --robot")
-    description = load_robot(robot_opt)
+    description = given or load_robot(robot_opt)
     return load_run(log, mapping=mapping, description=description), description
 
 
 def _highest_harmonic(log, run):
     """The excitation's highest frequency [Hz] from a guardid log's header (read with the
-    log: None for a foreign layout, then the spectrum rule applies)."""
+    log: None for a foreign layout, then the cut-off is chosen from the data)."""
     if run.ticks is None or getattr(run, "torque", False) or str(log).lower().endswith(".mat"):
         return None
     return run.highest_harmonic_hz
@@ -81,8 +82,8 @@ def _load_all(logs, robot_opt, foreign):
 
 
 def _check_outputs(logs, robot, foreign, **outputs) -> None:
-    """ConfigError when -o or --plot names one of the inputs (a log, the robot or mapping
-    YAML): results never replace recorded data."""
+    """ConfigError when -o, --plot or --report names one of the inputs (a log, the robot or
+    mapping YAML): results never replace recorded data."""
     from guardid.commands.outputs import check_output, robot_file
 
     inputs = [("LOG", x) for x in logs] + [("--robot", robot_file(robot))]
@@ -101,12 +102,28 @@ _CONSISTENT_HELP = (
     "where the data see nothing; prints them and writes them to params.yaml (consistent:), "
     "which `guardid export` turns into URDF / MJCF (docs/CONSISTENT.md)."
 )
-
-
 _PARALLEL_HELP = (
     "Gautier's parallel filter: low-pass the regressor and the torque at HZ [Hz] after the "
     "cut-off filter, then decimate (docs/FOREIGN_LOGS.md) [default: off]."
 )
+_CUTOFF_HELP = (
+    "Low-pass cut-off on positions and efforts [Hz] [default: chosen from the data by "
+    "cross-validation, docs/VALIDATION.md]."
+)
+
+
+def _arrays(runs):
+    """identify()'s per-run arrays (lists for several runs)."""
+    several = len(runs) > 1
+    out = {
+        k: [getattr(r, k) for r in runs] if several else getattr(runs[0], k)
+        for k in ("t", "q", "current", "voltage", "ticks", "qd")
+    }
+    if several and any(v is None for v in out["voltage"] + out["ticks"]):
+        out["voltage"] = out["ticks"] = None
+    if several and any(v is None for v in out["qd"]):
+        out["qd"] = None
+    return out
 
 
 @click.command()
@@ -116,9 +133,10 @@ _PARALLEL_HELP = (
     "--method",
     default="ls,wls,rls,hopfield",
     show_default=True,
-    help="Comma-separated: ls, wls, rls, hopfield, gradient, mlp.",
+    help="Comma-separated: ls, wls, bls (bounded: friction and rotor inertia >= 0), rls, "
+    "hopfield, gradient, mlp.",
 )
-@click.option("--cutoff", type=float, default=None, help="Low-pass cut-off [Hz] [default: auto].")
+@click.option("--cutoff", type=float, default=None, help=_CUTOFF_HELP)
 @click.option("--beta", type=float, default=0.01, show_default=True, help="Hopfield gain beta.")
 @click.option("--lam", type=float, default=1.0, show_default=True, help="RLS forgetting factor.")
 @click.option("--eta", type=float, default=1e-3, show_default=True, help="Gradient gain.")
@@ -134,10 +152,16 @@ _PARALLEL_HELP = (
 )
 @click.option("--parallel-filter", "parallel_hz", type=float, default=None, help=_PARALLEL_HELP)
 @click.option("--consistent", is_flag=True, help=_CONSISTENT_HELP)
+@click.option(
+    "--cv",
+    is_flag=True,
+    help="Leave-one-run-out cross-validation over the LOGs (at least 2): fit on all but one, "
+    "score the held-out run (stacked relative rms error), print the table.",
+)
 @_foreign_options
 def identify(
     log, robot, method, cutoff, beta, lam, eta, current_units, output, plot_path, report_path,
-    parallel_hz, consistent, **foreign,
+    parallel_hz, consistent, cv, **foreign,
 ):  # fmt: skip
     """Identify the robot's base parameters and motor constants from LOG [LOG ...].
 
@@ -146,8 +170,8 @@ def identify(
     identification rows are stacked (one fit), and so are the motor equations.
     """
     from guardid.commands._status import Status
+    from guardid.conditioning.options import ConditioningOptions
     from guardid.identify import identify as run_identify
-    from guardid.identify.pipeline import stacked_rows
     from guardid.identify.report import plot, table, to_yaml_dict
 
     _check_outputs(log, robot, foreign, output=output, plot_path=plot_path, report_path=report_path)
@@ -158,24 +182,24 @@ def identify(
     if len({r.torque for r in runs}) > 1:
         raise ConfigError(f"{logs[-1]}: mixes measured torque and motor current with {log}")
     methods = tuple(m.strip() for m in method.split(",") if m.strip())
-    several = len(runs) > 1
-    arrays = {
-        k: [getattr(r, k) for r in runs] if several else getattr(run, k)
-        for k in ("t", "q", "current", "voltage", "ticks")
-    }
-    if several and any(v is None for v in arrays["voltage"] + arrays["ticks"]):
-        arrays["voltage"] = arrays["ticks"] = None
-    status.stage("fitting")
+    options = ConditioningOptions(cutoff_hz=cutoff, parallel_filter_hz=parallel_hz)
+    if cv:
+        _cross_validate(logs, runs, description, methods, options, current_units, beta, lam, eta)
+        return
+    arrays = _arrays(runs)
+    status.stage("conditioning and fitting")
     result = run_identify(
         arrays["t"], arrays["q"], arrays["current"], description, methods=methods,
-        cutoff_hz=cutoff, beta=beta, lam=lam, gradient_eta=eta, voltage_v=arrays["voltage"],
+        conditioning=options, beta=beta, lam=lam, gradient_eta=eta, voltage_v=arrays["voltage"],
         ticks=arrays["ticks"], in_current_units=current_units, effort_is_torque=run.torque,
-        highest_harmonic_hz=_highest_harmonic(log, run), parallel_filter_hz=parallel_hz,
+        highest_harmonic_hz=_highest_harmonic(log, run), qd=arrays["qd"],
     )  # fmt: skip
+    fit = None
     if consistent:
         status.stage("consistent fit")
-    fit = _consistent(result, runs, description, run.torque, parallel_hz) if consistent else None
-    click.echo(table(result, (*methods, "consistent") if fit else methods))
+        fit = _consistent(result, runs, description, run.torque)
+    status.clear()
+    click.echo(table(result, (*methods, "consistent") if fit else methods, description))
     if fit:
         from guardid.physical.report import standard_table
 
@@ -185,16 +209,10 @@ def identify(
     from guardid.online.offline import track_log
 
     status.stage("tracking")
-
     tracker = track_log(
-        run,
-        description,
-        methods,
-        lam,
-        beta,
-        log_path=log,
+        run, description, methods, lam, beta, log_path=log,
         keep_history=plot_path is not None or report_path is not None,
-    )
+    )  # fmt: skip
     if tracker is not None and tracker.reports:
         times = sorted({round(r.at_s, 1) for r in tracker.reports})
         when = ", ".join(f"{t:.1f} s" for t in times)
@@ -205,10 +223,8 @@ def identify(
         )
     if output:
         with open(output, "w", encoding="utf-8") as f:
-            source = log if not several else ", ".join(str(x) for x in logs)
+            source = log if len(runs) == 1 else ", ".join(str(x) for x in logs)
             data = to_yaml_dict(result, description, source)
-            if parallel_hz:
-                data["parallel_filter_hz"] = float(parallel_hz)
             if fit:
                 from guardid.physical.report import yaml_section
 
@@ -216,10 +232,12 @@ def identify(
             yaml.safe_dump(data, f, sort_keys=False)
         click.echo(f"parameters written to {output}")
     if plot_path or report_path:
+        from guardid.identify.rows import stacked_rows
+
         status.stage("plots")
         cond, A, y = stacked_rows(
-            [(r.t, r.q, r.current) for r in runs], description, result.cutoff_hz,
-            current_units, run.torque, parallel_filter_hz=parallel_hz,
+            [(r.t, r.q, r.current) for r in runs], description, result.conditioning,
+            in_current_units=current_units, effort_is_torque=run.torque,
         )  # fmt: skip
     if plot_path:
         plot(result, plot_path, A, y, tracker=tracker)
@@ -238,59 +256,70 @@ def identify(
         )
 
 
-def _consistent(result, runs, description, torque, parallel_hz):
+def _consistent(result, runs, description, torque):
     from guardid.physical.report import add_consistent
 
     efforts = [(r.t, r.q, r.current) for r in runs]
-    return add_consistent(result, efforts, description, torque, parallel_hz)
+    return add_consistent(result, efforts, description, torque)
+
+
+def _cross_validate(logs, runs, description, methods, options, current_units, beta, lam, eta):
+    """``identify --cv``: leave one run out, fit the rest, score the held-out run."""
+    from guardid.identify.crossval import leave_one_run_out
+
+    if len(runs) < 2:
+        raise ConfigError(f"{logs[0]}: --cv needs at least two logs (one is held out)")
+    text = leave_one_run_out(
+        logs, runs, description, methods, options, current_units=current_units,
+        settings={"beta": beta, "lam": lam, "gradient_eta": eta},
+    )  # fmt: skip
+    click.echo(text)
 
 
 @click.command()
 @click.argument("log", nargs=-1, required=True, type=click.Path(dir_okay=False))
-@click.option("--params", "params_path", required=True, help="params.yaml from guardid identify.")
-@click.option("--robot", default=None, help="Shipped robot or YAML path [default: the params'].")
-@click.option("--cutoff", type=float, default=None, help="Low-pass cut-off [Hz].")
+@click.option(
+    "--params",
+    "params_paths",
+    multiple=True,
+    required=True,
+    help="params.yaml from guardid identify, or a reference values file (docs/VALIDATION.md). "
+    "Repeatable: the sets are scored side by side under one conditioning.",
+)
+@click.option(
+    "--robot",
+    default=None,
+    help="Shipped robot or YAML path [default: the description stored in the first params file].",
+)
+@click.option(
+    "--cutoff", type=float, default=None, help="Cut-off [Hz] [default: the first params file's]."
+)
 @click.option(
     "--parallel-filter",
     "parallel_hz",
     type=float,
     default=None,
-    help="Parallel filter [Hz] [default: the params' (parallel_filter_hz), else off].",
+    help="Parallel filter [Hz] [default: the first params file's conditioning, else off].",
 )
 @_foreign_options
-def validate(log, params_path, robot, cutoff, parallel_hz, **foreign):
-    """Torque prediction error (d_tau) of identified parameters on other runs (LOG [LOG ...]).
+def validate(log, params_paths, robot, cutoff, parallel_hz, **foreign):
+    """Score parameter sets on runs LOG [LOG ...]: torque prediction error, all joints stacked.
 
-    Several logs: their rows are stacked (each conditioned on its own), one d_tau.
+    Every set (each method of each params file, each reference values file) is scored under
+    the same conditioning: the first params file's (--cutoff / --parallel-filter override
+    it; without a params file the cut-off is chosen from these logs). Per run: the stacked
+    relative rms error rms(tau - tau_model) / rms(tau) over all joints, and per joint the rms
+    error in its unit and the relative error (not for a passive joint).
     """
-    from guardid.estimators import d_tau
-    from guardid.identify.pipeline import stacked_rows
-    from guardid.identify.report import read_params
+    from guardid.identify import validation as v
 
-    params = read_params(params_path)
-    runs, description = _load_all(log, robot or params["robot"], foreign)
-    run = runs[0]
-    names = [p["name"] for p in params["base_parameters"]]
-    from guardid.identify.pipeline import identified_names
-
-    model_names = list(identified_names(description))
-    if names != model_names:
-        raise ConfigError(
-            f"{params_path}: base_parameters: {names} do not match robot "
-            f"{description.name}'s {model_names}"
-        )
-    current_units = params.get("torque_unit") != "N m"
-    if parallel_hz is None:
-        parallel_hz = params.get("parallel_filter_hz")
-    cond, A, y = stacked_rows(
-        [(r.t, r.q, r.current) for r in runs], description, cutoff or params.get("cutoff_hz"),
-        current_units, run.torque, parallel_filter_hz=parallel_hz,
-    )  # fmt: skip
-    joints = [j.name for j in description.joints]
-    for m, entry in params["methods"].items():
-        theta = np.asarray(entry["values"], dtype=float)
-        if theta.shape != (len(names),):
-            raise ConfigError(f"{params_path}: methods.{m}.values: expected {len(names)} numbers")
-        per_joint = d_tau(A, y, theta, per_joint=True)
-        detail = ", ".join(f"{j} {100 * v:.2f} %" for j, v in zip(joints, per_joint, strict=True))
-        click.echo(f"{m.upper():9s} d_tau {100 * d_tau(A, y, theta):.2f} %  ({detail})")
+    first = v.first_params(params_paths)
+    spec = robot or (v.stored_robot(*first) if first else None)
+    runs, description = _load_all(log, spec, foreign)
+    options = v.stored_conditioning(*first) if first else None
+    options = (options or v.ConditioningOptions()).with_(
+        cutoff_hz=cutoff, parallel_filter_hz=parallel_hz
+    )
+    sets = [s for path in params_paths for s in v.load_sets(path, description)]
+    current_units = bool(first) and first[1].get("torque_unit") not in ("N m", None)
+    click.echo(v.validate_runs(runs, log, description, sets, options, current_units))

@@ -3,7 +3,8 @@
 Rule (documented defaults, every number settable):
 
 * If the excitation's harmonics are known (e.g. a finite Fourier series with fundamental
-  f0 and H harmonics, highest = H f0), fc = ``harmonic_factor`` (5) x the highest one.
+  f0 and H harmonics, highest = H f0), fc = ``harmonic_factor`` (:data:`HARMONIC_FACTOR`,
+  8) x the highest one.
 * Otherwise, from the spectrum of the positions: each joint's position is resampled to a
   uniform grid, linearly detrended, Hann-windowed; f_E is the frequency below which the
   fraction ``energy`` (99.5 %) of its energy lies; fc = ``spectrum_factor`` (2) x the
@@ -23,6 +24,9 @@ from scipy.signal import detrend
 from guardid.conditioning.filters import is_uniform, resample, uniform_grid
 
 MIN_CUTOFF_HZ = 0.5
+HARMONIC_FACTOR = 8.0
+"""Cut-off = this x the excitation's highest harmonic when it is known [-] (measured on guard
+captures: 5x leaves the PID-tracked stick/slip transients under-resolved, 8x was best)."""
 MAX_NYQUIST_FRACTION = 0.4
 
 
@@ -54,7 +58,7 @@ def choose_cutoff(
     q,
     *,
     highest_harmonic_hz: float | None = None,
-    harmonic_factor: float = 5.0,
+    harmonic_factor: float = HARMONIC_FACTOR,
     energy: float = 0.995,
     spectrum_factor: float = 2.0,
 ) -> float:

@@ -31,7 +31,9 @@ class Conditioned:
     sample and not within ``edge_s`` of either end);
     ``stiction`` (M,) bool is True where some joint's |qd| < ``threshold`` (n,) [rad/s].
     ``cutoff_hz`` [Hz] and ``decimation`` (k) are the values used; ``notes`` say how
-    each choice was made.
+    each choice was made. ``tau_raw`` (M, n) is the effort in tau's unit at the same instants
+    before the low-pass (aligned and resampled only): the measured signal a model must predict.
+    ``n_flagged`` counts the original samples flagged near zero velocity.
     """
 
     t: np.ndarray
@@ -46,6 +48,9 @@ class Conditioned:
     decimation: int
     torque_unit: str
     notes: list[str] = field(default_factory=list)
+    tau_raw: np.ndarray | None = None
+    n_flagged: int = 0
+    dropped: dict = field(default_factory=dict)
 
 
 def condition(
@@ -64,6 +69,7 @@ def condition(
     edge_s: float | None = None,
     stiction_guard_s: float = 0.0,
     flat_is_stuck: bool = False,
+    qd_measured=None,
 ) -> Conditioned:
     """Condition a log for identification: filter, differentiate, align, decimate, mask.
 
@@ -84,7 +90,8 @@ def condition(
         Nyquist frequency >= 2 x cutoff; 1 = no decimation.
     stiction_threshold : scalar or (n,) [rad/s], optional
         Default: :func:`default_stiction_threshold` (5 % of peak speed, at least 3
-        encoder quanta per sample period if ``resolution_rad`` [rad] is given).
+        encoder quanta per sample period if ``resolution_rad`` [rad] is given); a NaN entry
+        takes the default for that joint, 0 keeps every row of that joint.
     align_period_mean : bool
         True (guard firmware): effort[k] is the mean over (t_{k-1}, t_k]; it is turned
         into the value at t_k (:func:`align_period_mean`). False: instantaneous samples.
@@ -131,7 +138,7 @@ def condition(
     fs = 1.0 / dt
     if cutoff_hz is None:
         cutoff_hz = choose_cutoff(grid, q, highest_harmonic_hz=highest_harmonic_hz)
-        how = "5 x highest harmonic" if highest_harmonic_hz else "2 x 99.5 % energy bandwidth"
+        how = "8 x highest harmonic" if highest_harmonic_hz else "2 x 99.5 % energy bandwidth"
         notes.append(f"cut-off {cutoff_hz:.3g} Hz chosen from the trajectory ({how})")
     else:
         notes.append(f"cut-off {cutoff_hz:.3g} Hz set by the caller")
@@ -142,19 +149,26 @@ def condition(
         eff = resample(t, eff, grid)
     qf = zero_phase_lowpass(q, fs, cutoff_hz, order)
     tau = zero_phase_lowpass(eff, fs, cutoff_hz, order)
+    raw = eff
     qd, qdd = central_derivatives(qf, dt)
+    if qd_measured is not None:
+        vel = np.asarray(qd_measured, dtype=float).reshape(len(t), -1)
+        if grid is not t:
+            vel = resample(t, vel, grid)
+        qd = zero_phase_lowpass(vel, fs, cutoff_hz, order)
+        qdd = central_derivatives(qd, dt)[0]
+        notes.append("measured velocities used (low-passed alike), qdd differentiated from them")
     if gain is None:
         unit = "effort"
         notes.append("gain=None: tau is the filtered effort (identification in current units)")
     else:
         tau = current_to_torque(tau, gain)
+        raw = current_to_torque(raw, gain)
         unit = "N m"
-    if stiction_threshold is None:
-        threshold = default_stiction_threshold(
-            qd, resolution_rad=resolution_rad, sample_period_s=dt
-        )
-    else:
-        threshold = np.broadcast_to(np.asarray(stiction_threshold, float), qd.shape[1:])
+    threshold = default_stiction_threshold(qd, resolution_rad=resolution_rad, sample_period_s=dt)
+    if stiction_threshold is not None:
+        given = np.broadcast_to(np.asarray(stiction_threshold, float), qd.shape[1:])
+        threshold = np.where(np.isnan(given), threshold, given)
     stuck = stiction_mask(qd, threshold)
     if flat is not None:
         stuck = stuck | flat
@@ -167,7 +181,7 @@ def condition(
     if k > 1:
         notes.append(f"decimated by {k}: {fs / k:.4g} Hz, Nyquist {fs / (2 * k):.4g} Hz")
     sl = slice(0, None, k)
-    grid, qf, qd, qdd, tau = grid[sl], qf[sl], qd[sl], qdd[sl], tau[sl]
+    grid, qf, qd, qdd, tau, raw = grid[sl], qf[sl], qd[sl], qdd[sl], tau[sl], raw[sl]
     stuck, near, inside = stuck[sl], near[sl], inside[sl]
     how = " or with no encoder count" if flat is not None else ""
     notes.append(
@@ -188,6 +202,13 @@ def condition(
         k,
         unit,
         notes,
+        raw,
+        n_flagged,
+        {
+            "at the ends (filter transients)": int((~inside).sum()),
+            "near zero velocity": int((inside & stuck).sum()),
+            "next to a near-zero-velocity sample": int((inside & near & ~stuck).sum()),
+        },
     )
 
 

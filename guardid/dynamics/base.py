@@ -24,7 +24,23 @@ SEED = 20240601
 DECIMALS = 10
 
 # Kept first (natural base parameters) ... eliminated last.
-_PRIORITY = ("ZZ", "XX", "XY", "XZ", "YZ", "MX", "MY", "Fv", "Fc", "Fo", "Ia", "YY", "MZ", "M")
+_PRIORITY = (
+    "ZZ",
+    "XX",
+    "XY",
+    "XZ",
+    "YZ",
+    "MX",
+    "MY",
+    "Fv",
+    "Fc",
+    "Fo",
+    "Fs",
+    "Ia",
+    "YY",
+    "MZ",
+    "M",
+)
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,9 @@
 Parameter vector (p,): per link j (1-based) XXj XYj XZj YYj YZj ZZj MXj MYj MZj Mj
 (inertia tensor about the origin of standard-DH frame j [kg m^2], first moments m*c [kg m],
 mass [kg]); then per joint with a drive or a mechanical-only rotor Iaj = N^2 J_rotor
-[kg m^2]; then per joint with friction Fvj [N m s/rad] Fcj [N m] Foj [N m].
+[kg m^2]; then per joint with friction Fvj [N m s/rad] Fcj [N m] Foj [N m] (and Fsj [N m],
+the Stribeck excess, with the Stribeck model); the Coulomb column is the YAML friction
+model's shape (sign, tanh or atan of the velocity).
 
 Rotor j adds Iaj u_j u_j^T to M(q) with u_j = e_j, or, for a coupled rotor (YAML
 ``rotor.coupling`` = s = +-1: the rotor sits on link j-1 and spins at v . q', v_k = c_k for
@@ -49,6 +51,9 @@ class ChainModel:
                 fr = joint.friction
                 names += [f"Fv{j + 1}", f"Fc{j + 1}", f"Fo{j + 1}"]
                 values += [fr.viscous, fr.coulomb, fr.offset]
+                if fr.model == "stribeck":
+                    names.append(f"Fs{j + 1}")
+                    values.append(fr.stribeck)
         self.param_names = names
         self.params = np.array(values, dtype=float)
         self.known_zero = [
@@ -79,9 +84,12 @@ class ChainModel:
                 out[:, :, self._ia_index[j]] += np.outer(qdd @ u, u)
             k = self._fric_index[j]
             if k is not None:
+                fr = self.description.joints[j].friction
                 out[:, j, k] = qd[:, j]
-                out[:, j, k + 1] = np.sign(qd[:, j])
+                out[:, j, k + 1] = fr.shape(qd[:, j])
                 out[:, j, k + 2] = 1.0
+                if fr.model == "stribeck":
+                    out[:, j, k + 3] = fr.stribeck_shape(qd[:, j])
         return out
 
     @cached_property
@@ -117,7 +125,10 @@ class ChainModel:
                 out += p[self._ia_index[j]] * np.outer(qdd @ u, u)
             k = self._fric_index[j]
             if friction and k is not None:
-                out[:, j] += p[k] * qd[:, j] + p[k + 1] * np.sign(qd[:, j]) + p[k + 2]
+                fr = self.description.joints[j].friction
+                out[:, j] += p[k] * qd[:, j] + p[k + 1] * fr.shape(qd[:, j]) + p[k + 2]
+                if fr.model == "stribeck":
+                    out[:, j] += p[k + 3] * fr.stribeck_shape(qd[:, j])
         return out
 
     def mass_matrix(self, q, params=None) -> np.ndarray:

@@ -9,6 +9,8 @@ A *mapping* says which column (CSV) or variable (.mat) holds which signal, in SI
             gain N * eta * kt of the robot YAML; taken as the mean over the sample period
             ending at the time stamp, as in guardid's own logs)
     v<j>    motor voltage [V] (optional)
+    qd<j>   measured joint velocity [rad/s, or m/s] (optional, every joint or none): used
+            instead of the differentiated positions (filtered alike)
 
 Each value is a column name, optionally times a factor that converts it to SI:
 ``pos1*0.001`` (mm -> m), ``angle*deg`` (deg -> rad, ``deg`` = pi/180), ``pos2*-1`` (sign).
@@ -24,7 +26,9 @@ earlier ones. The YAML file::
 A .mat file either holds one vector variable per column (the mapping names variables), or
 one 2-D array ``mat_var`` whose columns are named by ``mat_columns``, else by a string
 variable ``<mat_var>_columns`` or ``columns`` in the file, else by their 1-based index
-(``q1=2``). Every problem is a one-line :class:`LogFormatError` (data) or
+(``q1=2``). A CSV file whose mapping names columns only by 1-based numbers (``q1=2``) may
+have no header row: when its first data line is all numbers, it is read as data. Every
+problem is a one-line :class:`LogFormatError` (data) or
 :class:`ConfigError` (mapping) naming the file and the column or variable.
 """
 
@@ -40,8 +44,8 @@ import yaml
 
 from guardid.errors import ConfigError, LogFormatError
 
-KEY_RE = re.compile(r"^(time|q\d+|tau\d+|i\d+|v\d+)$")
-KEYS_HELP = "time, q<j>, tau<j>, i<j>, v<j> (j = 1, 2, ...)"
+KEY_RE = re.compile(r"^(time|q\d+|qd\d+|tau\d+|i\d+|v\d+)$")
+KEYS_HELP = "time, q<j>, qd<j>, tau<j>, i<j>, v<j> (j = 1, 2, ...)"
 NAMED_FACTORS = {"deg": math.pi / 180.0}  #: factor names allowed after '*'
 MIN_ROWS = 10
 
@@ -218,6 +222,9 @@ def check_mapping(mapping: ColumnMapping, n_joints: int, robot: str, log) -> str
     v = mapping.joints("v")
     if v and v != want:
         raise ConfigError(f"{where}: maps v{v[0]}..: map v<j> for every joint or for none")
+    qd = mapping.joints("qd")
+    if qd and qd != want:
+        raise ConfigError(f"{where}: maps qd{qd[0]}..: map qd<j> for every joint or for none")
     has_time = "time" in mapping.columns
     if has_time and mapping.sample_period is not None:
         raise ConfigError(f"{where}: give either a time column or a sample period, not both")
@@ -235,6 +242,7 @@ class ForeignData:
     effort: np.ndarray
     voltage: np.ndarray | None
     torque: bool
+    qd: np.ndarray | None = None
 
 
 def read_foreign(path, mapping: ColumnMapping, n_joints: int, robot: str) -> ForeignData:
@@ -276,7 +284,8 @@ def read_foreign(path, mapping: ColumnMapping, n_joints: int, robot: str) -> For
     voltage = (
         np.column_stack([sig(f"v{j}") for j in joints]) if mapping.joints("v") else None
     )  # fmt: skip
-    return ForeignData(t - t[0], q, effort, voltage, kind == "tau")
+    qd = np.column_stack([sig(f"qd{j}") for j in joints]) if mapping.joints("qd") else None
+    return ForeignData(t - t[0], q, effort, voltage, kind == "tau", qd)
 
 
 def _read_csv(path: Path, wanted: list[str]):
@@ -307,6 +316,15 @@ def _read_csv(path: Path, wanted: list[str]):
     index = {}
     for c, name in enumerate(names):
         index.setdefault(name, c)
+    numbered = all(n.isdigit() and int(n) >= 1 for n in wanted)
+    if numbered and (_all_numbers(names) or not any(n in index for n in wanted)):
+        if _all_numbers(names):  # headerless: the first line is data
+            lines = [(None, "")] + lines
+        index = {n: int(n) - 1 for n in wanted}
+        width = len(names)
+        for n in wanted:
+            if int(n) > width:
+                raise LogFormatError(f"{path}: column {n} not found (the file has {width} columns)")
     for name in wanted:
         if name not in index:
             shown = ", ".join(names[:12]) + (", ..." if len(names) > 12 else "")
@@ -333,6 +351,15 @@ def _read_csv(path: Path, wanted: list[str]):
                 raise LogFormatError(f"{path}: line {no}: column {name!r}: not a number ({cell!r})")
             data[name][k] = value
     return data, rows
+
+
+def _all_numbers(cells) -> bool:
+    """True if every cell parses as a float (a data line, not a header)."""
+    try:
+        [float(c) for c in cells]
+    except ValueError:
+        return False
+    return bool(cells)
 
 
 def _read_mat(path: Path, mapping: ColumnMapping, wanted: list[str]):

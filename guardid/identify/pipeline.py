@@ -9,13 +9,12 @@ conditioning stage bridges by resampling.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from guardid.conditioning import choose_cutoff, condition
-from guardid.conditioning.bandwidth import clip_cutoff
-from guardid.conditioning.parallel import parallel_filter
+from guardid.conditioning.bandwidth import HARMONIC_FACTOR
+from guardid.conditioning.options import ConditioningOptions
 from guardid.dynamics import build_model
 from guardid.errors import GuardidError
 from guardid.estimators import (
@@ -28,8 +27,23 @@ from guardid.estimators import (
     d_tau,
 )
 from guardid.identify.electrical import MotorEstimate, identify_motor
+from guardid.identify.rows import (  # noqa: F401  (re-exported)
+    STICTION_GUARD_PERIODS,
+    Rows,
+    free_columns,
+    identification_rows,
+    rows_summary,
+    stacked_rows,
+)
+from guardid.identify.trust import (
+    BoundedLeastSquares,
+    impossible_values,
+    lower_bounds,
+    mark_not_converged,
+    stacked_error,
+)
 
-METHODS = ("ls", "wls", "rls", "hopfield", "gradient", "mlp")
+METHODS = ("ls", "wls", "bls", "rls", "hopfield", "gradient", "mlp")
 POOR_REL_STD_PCT = 10.0  #: warn when a parameter's relative standard deviation exceeds this
 
 
@@ -46,6 +60,8 @@ class MethodResult:
     d_tau: float = math.nan
     d_tau_per_joint: np.ndarray | None = None
     settings: dict = field(default_factory=dict)
+    converged: bool = True  # False: in-sample fit much worse than LS's (not an equal)
+    d_stacked: float = math.nan  # in-sample rms(y - A theta) / rms(y), joints stacked [-]
 
 
 @dataclass
@@ -63,33 +79,19 @@ class Identification:
     notes: list[str]
     motors: list[MotorEstimate] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    conditioning: ConditioningOptions = field(default_factory=ConditioningOptions)
+    cutoff_reason: str = ""
+    rows_summary: str = ""
 
 
-HARMONIC_CUTOFF_FACTOR = 8.0
-"""Default cut-off = this x the excitation's highest harmonic when the log says it [-].
-
-Measured on 60 s guard captures (13 runs, 2 optimised trajectories, highest harmonic 0.5 Hz):
-5 x (2.5 Hz) leaves the stick/slip transients of the PID-tracked motion under-resolved, 8 x
-(4 Hz) gave the smallest errors; the encoder-quantisation noise on qdd is still negligible.
-"""
-STICTION_GUARD_PERIODS = 0.6
-"""Rows within this many cut-off periods of a stuck / reversing sample are dropped [-]."""
+HARMONIC_CUTOFF_FACTOR = HARMONIC_FACTOR  # kept for callers; see conditioning.bandwidth
 
 
 def identified_names(description) -> tuple[str, ...]:
     """Names of the base parameters that identification estimates (all but the friction
     offsets a description declares absent with ``offset: null``)."""
     model = build_model(description)
-    return tuple(model.base.names[i] for i in _free_columns(model, description))
-
-
-def _free_columns(model, description) -> list[int]:
-    fixed = {
-        f"Fo{j + 1}"
-        for j, joint in enumerate(description.joints)
-        if joint.friction is not None and not getattr(joint.friction, "offset_modelled", True)
-    }
-    return [i for i, name in enumerate(model.base.names) if name not in fixed]
+    return tuple(model.base.names[i] for i in free_columns(model, description))
 
 
 def trajectory_highest_harmonic(trajectory: dict | None) -> float | None:
@@ -111,181 +113,13 @@ def trajectory_highest_harmonic(trajectory: dict | None) -> float | None:
     return None
 
 
-def identification_rows(
-    t_s,
-    q_rad,
-    current_a,
-    description,
-    cutoff_hz=None,
-    in_current_units=False,
-    effort_is_torque=False,
-    *,
-    highest_harmonic_hz: float | None = None,
-    parallel_filter_hz: float | None = None,
-    **kwargs,
-):
-    """Conditioned signals and the stacked base regressor of the usable rows.
-
-    Returns (conditioned, A (M, n, b'), y (M, n)) where y is the joint torque [N m] minus the
-    model's known torque (or the current [A] when ``in_current_units``) and b' counts the
-    :func:`identified_names` columns. ``effort_is_torque``: ``current_a`` is measured joint
-    torque [N m] (instantaneous samples: gain 1, no period-mean alignment). Defaults (each
-    overridable through ``kwargs`` of :func:`guardid.conditioning.condition`):
-
-    * cut-off: ``cutoff_hz`` [Hz], else :data:`HARMONIC_CUTOFF_FACTOR` x
-      ``highest_harmonic_hz`` [Hz] (clipped to [0.5 Hz, 0.4 Nyquist]), else the spectrum rule;
-    * stiction: a sample is flagged when a joint is below the velocity threshold or its
-      encoder did not count in the period (stuck or reversing), and every row within
-      :data:`STICTION_GUARD_PERIODS` / cut-off of a flagged sample is dropped;
-    * decimation to a Nyquist frequency of about the cut-off, so that the rows' filtered
-      noise is roughly independent and the LS standard deviations are honest.
-
-    ``parallel_filter_hz`` [Hz] (default None = off): Gautier's parallel filter
-    (:mod:`guardid.conditioning.parallel`): the regressor is computed on every conditioned
-    sample (no decimation there), then its columns and y are low-passed with one filter at
-    this cut-off and decimated to a Nyquist frequency of about 2x it; the usable-row mask
-    is decimated with them and rows within 1 / ``parallel_filter_hz`` of either end are
-    dropped. Use a cut-off near the excitation band's upper edge, below ``cutoff_hz``.
-    """
-    model = build_model(description)
-    gain = None if in_current_units else _drive_gain(description)
-    if effort_is_torque:
-        gain = None if in_current_units else np.ones(len(description.joints))
-        kwargs.setdefault("align_period_mean", False)
-    t = np.asarray(t_s, dtype=float)
-    fs = 1.0 / float(np.median(np.diff(t)))
-    if cutoff_hz is None and highest_harmonic_hz:
-        cutoff_hz = clip_cutoff(HARMONIC_CUTOFF_FACTOR * float(highest_harmonic_hz), fs)
-    if cutoff_hz is None:
-        cutoff_hz = choose_cutoff(t, np.asarray(q_rad, dtype=float).reshape(len(t), -1))
-    if parallel_filter_hz:
-        kwargs["decimate"] = 1  # decimation happens after the parallel filter
-    auto_guard = "stiction_guard_s" not in kwargs and not effort_is_torque
-    auto_dec = "decimate" not in kwargs and not effort_is_torque
-    if not effort_is_torque:  # guardid logs (period-mean motor current); foreign: as before
-        kwargs.setdefault("stiction_guard_s", STICTION_GUARD_PERIODS / cutoff_hz)
-        kwargs.setdefault("flat_is_stuck", True)
-        kwargs.setdefault("decimate", max(1, int(fs / (2.0 * cutoff_hz))))
-    cond = condition(t, q_rad, current_a, cutoff_hz=cutoff_hz, gain=gain, **kwargs)
-    n_free = len(_free_columns(model, description))
-    if cond.mask.sum() <= 3 * n_free and auto_guard:
-        # a short or slow run: the stiction guard would leave too few rows; fall back to
-        # masking the flagged samples only (less accurate friction, said in the notes)
-        kwargs.update(stiction_guard_s=0.0, flat_is_stuck=False)
-        if auto_dec:
-            kwargs.pop("decimate")
-        cond = condition(t, q_rad, current_a, cutoff_hz=cutoff_hz, gain=gain, **kwargs)
-        cond.notes.append("too few rows with the stiction guard: guard disabled")
-    free = _free_columns(model, description)
-    if parallel_filter_hz:
-        return _parallel_rows(model, description, cond, free, in_current_units, parallel_filter_hz)
-    m = cond.mask
-    if m.sum() <= len(free):
-        raise GuardidError(
-            f"only {int(m.sum())} usable rows after conditioning (need more than "
-            f"{len(free)}): the run is too short or the joints hardly move"
-        )
-    q, qd, qdd = cond.q[m], cond.qd[m], cond.qdd[m]
-    A_all = model.base_regressor(q, qd, qdd)
-    values = model.base.values(model.params)
-    fixed = [i for i in range(A_all.shape[2]) if i not in free]
-    y = cond.tau[m] - model.known_torque(q, qd, qdd)
-    if fixed and not in_current_units:
-        y = y - A_all[:, :, fixed] @ values[fixed]
-    return cond, A_all[:, :, free], y
-
-
-def _parallel_rows(model, description, cond, free, in_current_units, hz):
-    """:func:`identification_rows` with the parallel filter at ``hz`` [Hz] (see there)."""
-    fs = 1.0 / float(np.median(np.diff(cond.t)))
-    if not 0.0 < hz < 0.5 * fs:
-        raise GuardidError(f"--parallel-filter: {hz:g} Hz must be in (0, {0.5 * fs:g}) Hz")
-    A_all = model.base_regressor(cond.q, cond.qd, cond.qdd)
-    y = cond.tau - model.known_torque(cond.q, cond.qd, cond.qdd)
-    fixed = [i for i in range(A_all.shape[2]) if i not in free]
-    if fixed and not in_current_units:
-        y = y - A_all[:, :, fixed] @ model.base.values(model.params)[fixed]
-    sig = (cond.q, cond.qd, cond.qdd, cond.stiction)
-    k, (A_all, y, tau, mask, q, qd, qdd, stuck) = parallel_filter(
-        fs, hz, A_all, y, cond.tau, cond.mask, *sig
-    )
-    t = cond.t[::k]
-    mask = mask & (t >= t[0] + 1.0 / hz) & (t <= t[-1] - 1.0 / hz)
-    note = f"parallel filter {hz:.3g} Hz on the regressor and the torque, then decimation by {k}"
-    cond = replace(
-        cond, t=t, q=q, qd=qd, qdd=qdd, tau=tau, mask=mask, stiction=stuck,
-        decimation=cond.decimation * k, notes=[*cond.notes, note],
-    )  # fmt: skip
-    if mask.sum() <= len(free):
-        raise GuardidError(
-            f"only {int(mask.sum())} usable rows after the parallel filter (need more than "
-            f"{len(free)}): the run is too short or the joints hardly move"
-        )
-    return cond, A_all[mask][:, :, free], y[mask]
-
-
-def stacked_rows(
-    runs,
-    description,
-    cutoff_hz=None,
-    in_current_units=False,
-    effort_is_torque=False,
-    *,
-    highest_harmonic_hz: float | None = None,
-    parallel_filter_hz: float | None = None,
-):
-    """Rows of several runs, each conditioned on its own, stacked.
-
-    ``runs``: a sequence of (t [s] (N,), q [rad] (N, n), effort (N, n)). The cut-off
-    [Hz] (``cutoff_hz``, else :func:`identification_rows`' rule on the first run) is the
-    same for every run. Returns (conditioned, A (M, n, b'), y (M, n)) where
-    ``conditioned`` joins the runs' conditioned signals, times shifted so that they keep
-    increasing (run k starts one sample after run k-1 ends).
-    """
-    conds, As, ys = [], [], []
-    for t, q, effort in runs:
-        cond, A, y = identification_rows(
-            t, q, effort, description, cutoff_hz, in_current_units, effort_is_torque,
-            highest_harmonic_hz=highest_harmonic_hz, parallel_filter_hz=parallel_filter_hz,
-        )  # fmt: skip
-        cutoff_hz = cond.cutoff_hz
-        conds.append(cond)
-        As.append(A)
-        ys.append(y)
-    if len(conds) == 1:
-        return conds[0], As[0], ys[0]
-    ts, start = [], 0.0
-    for c in conds:
-        ts.append(c.t - c.t[0] + start)
-        start = ts[-1][-1] + float(np.median(np.diff(c.t)))
-    notes = list(conds[0].notes) + [f"{len(conds)} runs conditioned separately, rows stacked"]
-    joined = replace(
-        conds[0],
-        t=np.concatenate(ts),
-        **{f: np.concatenate([getattr(c, f) for c in conds])
-           for f in ("q", "qd", "qdd", "tau", "mask", "stiction")},
-        notes=notes,
-    )  # fmt: skip
-    return joined, np.concatenate(As), np.concatenate(ys)
-
-
-def _drive_gain(description) -> np.ndarray:
-    gains = []
-    for j in description.joints:
-        if j.drive is None:
-            gains.append(1.0)  # ideal torque source: the effort column is torque already
-        else:
-            gains.append(j.drive.gear_ratio * j.drive.efficiency * j.drive.kt)
-    return np.array(gains)
-
-
 def identify(
     t_s,
     q_rad,
     current_a,
     description,
     methods=("ls", "wls", "rls", "hopfield"),
-    cutoff_hz: float | None = None,
+    conditioning: ConditioningOptions | None = None,
     beta: float = 0.01,
     lam: float = 1.0,
     gradient_eta: float = 1e-3,
@@ -297,7 +131,7 @@ def identify(
     hopfield_passes: int = 1,
     hopfield_nominal=None,
     hopfield_settle: bool = True,
-    parallel_filter_hz: float | None = None,
+    qd=None,
 ) -> Identification:
     """Identify the base parameters of ``description`` from one run (or several).
 
@@ -306,7 +140,9 @@ def identify(
     motors' R and Ke. ``methods`` is any subset of :data:`METHODS`. ``effort_is_torque``:
     current_a is measured joint torque [N m] (see :func:`identification_rows`).
     ``highest_harmonic_hz`` [Hz] (the excitation's, e.g. from the log header,
-    :func:`trajectory_highest_harmonic`) sets the default cut-off (:func:`identification_rows`).
+    :func:`trajectory_highest_harmonic`) informs the automatic cut-off; ``conditioning``
+    (:class:`ConditioningOptions`, default all automatic) says how the logs are conditioned
+    (:func:`stacked_rows`); the options used, cut-off resolved, are in the result.
     Hopfield starts from ``hopfield_nominal`` (b',) (default: the description's base values)
     in a box of +-100 % of it and runs ``hopfield_passes`` times over the rows, each pass
     starting where the previous one ended (same box). With ``hopfield_settle`` the network
@@ -318,8 +154,9 @@ def identify(
     Several runs: t_s, q_rad and current_a are lists (one array per run), conditioned
     separately and their rows stacked (:func:`stacked_rows`); voltage_v and ticks are then
     lists too and the motors are estimated from all runs together (a motor-equation row
-    never spans two runs). ``parallel_filter_hz`` [Hz]:
-    Gautier's parallel filter on the regressor and the torque (:func:`identification_rows`).
+    never spans two runs). ``qd`` (N, n) [rad/s | m/s] (a list for several runs): measured
+    joint velocities, used instead of the differentiated positions. ``bls`` is least squares
+    with friction and rotor inertia kept >= 0 (:mod:`guardid.identify.trust`).
     """
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
@@ -327,10 +164,13 @@ def identify(
     model = build_model(description)
     several = isinstance(t_s, (list, tuple))
     runs = list(zip(t_s, q_rad, current_a, strict=True)) if several else [(t_s, q_rad, current_a)]
-    cond, A, y = stacked_rows(
-        runs, description, cutoff_hz, in_current_units, effort_is_torque,
-        highest_harmonic_hz=highest_harmonic_hz, parallel_filter_hz=parallel_filter_hz,
+    if qd is not None:
+        runs = [(*r, v) for r, v in zip(runs, qd if several else [qd], strict=True)]
+    rows = stacked_rows(
+        runs, description, conditioning, in_current_units=in_current_units,
+        effort_is_torque=effort_is_torque, highest_harmonic_hz=highest_harmonic_hz,
     )  # fmt: skip
+    cond, A, y = rows
     if several:  # motors (R, Ke) from all runs, stacked
         q_rad = np.concatenate([np.asarray(r[1], dtype=float) for r in runs])
         current_a = np.concatenate([np.asarray(r[2], dtype=float) for r in runs])
@@ -338,7 +178,7 @@ def identify(
             np.concatenate([np.asarray(v, dtype=float) for v in voltage_v]) if voltage_v else None
         )
         ticks = _separated_ticks(ticks) if ticks else None
-    free = _free_columns(model, description)
+    free = free_columns(model, description)
     names = tuple(model.base.names[i] for i in free)
     nominal = model.base.values(model.params)[free]
     dt = float(np.median(np.diff(cond.t[cond.mask])))
@@ -349,6 +189,8 @@ def identify(
             est = ls
         elif method == "wls":
             est = WeightedLeastSquares().fit(A, y)
+        elif method == "bls":
+            est = BoundedLeastSquares(lower_bounds(names)).fit(A, y)
         elif method == "rls":
             est = RLS(lam=lam, p0=_rls_p0(A)).fit(A, y)
         elif method == "hopfield":
@@ -376,6 +218,9 @@ def identify(
         for name, r in zip(names, ls.rel_std_, strict=True)
         if r > POOR_REL_STD_PCT
     ]
+    warnings += rows.warnings + _moving_with_cutoff(rows.choice, names, ls)
+    warnings += mark_not_converged(results, ls)
+    warnings += impossible_values(model, free, names, ls, cond, in_current_units)
     motors = []
     if voltage_v is not None and ticks is not None and not (in_current_units or effort_is_torque):
         motors = _motors(description, ticks, q_rad, voltage_v, current_a)
@@ -391,7 +236,40 @@ def identify(
         notes=list(cond.notes),
         motors=motors,
         warnings=warnings,
+        conditioning=rows.options,
+        cutoff_reason=cond.notes[0] if cond.notes else "",
+        rows_summary=rows_summary(cond),
     )
+
+
+MOVING_PCT = 10.0
+"""Warn when a well-identified parameter moves more than this [%] between the chosen cut-off
+and a neighbouring candidate."""
+
+
+def _moving_with_cutoff(choice, names, ls) -> list[str]:
+    """Warnings for estimates that move a lot with the cut-off (neighbouring candidates)."""
+    if choice is None or len(choice.candidates) < 2:
+        return []
+    i = choice.candidates.index(choice.cutoff_hz)
+    base = choice.thetas[i]
+    if base is None:
+        return []
+    out = []
+    for j in (i - 1, i + 1):
+        other = choice.thetas[j] if 0 <= j < len(choice.thetas) else None
+        if other is None:
+            continue
+        change = 100 * np.abs(other - base) / np.maximum(np.abs(base), 1e-300)
+        well = ls.rel_std_ < POOR_REL_STD_PCT
+        moved = [f"{n} {c:.0f} %" for n, c, w in zip(names, change, well, strict=True)
+                 if w and c > MOVING_PCT]  # fmt: skip
+        if moved:
+            out.append(
+                f"estimates move a lot with the cut-off: at {choice.candidates[j]:g} Hz instead "
+                f"of {choice.cutoff_hz:g} Hz " + ", ".join(moved) + " change"
+            )
+    return out
 
 
 def run_hopfield(A, y, nominal, beta: float, dt: float, passes: int = 1) -> Hopfield:
@@ -448,6 +326,7 @@ def _result(method, est, A, y, t_rows) -> MethodResult:
         history=None if hist is None else np.asarray(hist),
         history_t=hist_t,
         d_tau=float(d_tau(A, y, theta)),
+        d_stacked=stacked_error(A, y, theta),
         d_tau_per_joint=np.asarray(d_tau(A, y, theta, per_joint=True)),
     )
 

@@ -10,12 +10,50 @@ import yaml
 from guardid.errors import ConfigError
 
 
-def table(result, methods) -> str:
-    """Base parameters per method: estimate, +- std where known, and the description's value."""
+def friction_summary(description) -> str:
+    """'friction: shoulder tanh(qd / 0.01 rad/s), ...' (the model each joint's Coulomb term has)."""
+    parts = []
+    for j in description.joints:
+        f = j.friction
+        if f is None:
+            continue
+        unit = "m/s" if j.type == "prismatic" else "rad/s"
+        if f.model == "sign":
+            shape = "sign(qd)"
+        else:
+            fn = "atan" if f.model == "atan" else "tanh"
+            shape = f"{fn}(qd / {f.velocity_scale:g} {unit})"
+        if f.model == "stribeck":
+            shape += f" + Stribeck exp(-(qd / {f.stribeck_velocity:g} {unit})^2) {shape}"
+        parts.append(f"{j.name} {shape}")
+    return "friction (Coulomb term): " + ", ".join(parts) if parts else ""
+
+
+def effort_units(result, description) -> str:
+    """'N m' / 'N' / 'N m, N' per joint kind, or the current units."""
+    if result.torque_unit != "N m":
+        return "A (current units)"
+    kinds = ["N" if j.type == "prismatic" else "N m" for j in description.joints]
+    if len(set(kinds)) == 1:
+        return kinds[0]
+    return ", ".join(f"{j.name} {k}" for j, k in zip(description.joints, kinds, strict=True))
+
+
+def table(result, methods, description=None) -> str:
+    """Base parameters per method: estimate, +- std where known, and the description's value;
+    then the conditioning (cut-off and why, rows used and dropped) and the friction model."""
     head = f"{'parameter':10s} {'YAML':>10s}"
     for m in methods:
-        head += f" {m.upper():>21s}"
-    lines = [head]
+        label = m.upper() if result.results[m].converged else f"{m.upper()} (not converged)"
+        head += f" {label:>21s}"
+    lines = []
+    if result.cutoff_reason:
+        lines.append(result.cutoff_reason)
+    if result.rows_summary:
+        lines.append(result.rows_summary)
+    if description is not None and friction_summary(description):
+        lines.append(friction_summary(description))
+    lines.append(head)
     for k, name in enumerate(result.names):
         line = f"{name:10s} {result.nominal[k]:10.4g}"
         for m in methods:
@@ -27,10 +65,13 @@ def table(result, methods) -> str:
             line += f" {cell:>21s}"
         lines.append(line)
     unit = "N m" if result.torque_unit == "N m" else "A (current units)"
+    if description is not None:
+        unit = effort_units(result, description)
     fit = ", ".join(f"{m.upper()} {100 * result.results[m].d_tau:.2f} %" for m in methods)
+    stacked = ", ".join(f"{m.upper()} {100 * result.results[m].d_stacked:.2f} %" for m in methods)
     lines.append(
         f"rows {result.rows}, cut-off {result.cutoff_hz:.3g} Hz, cond(A) {result.cond:.4g}, "
-        f"torque in {unit}; d_tau {fit}"
+        f"effort in {unit}; d_tau {fit}; stacked error {stacked}"
     )
     for motor in result.motors:
         lines.append(
@@ -48,6 +89,7 @@ def to_yaml_dict(result, description, log_path) -> dict:
         "log": str(log_path),
         "torque_unit": result.torque_unit,
         "cutoff_hz": result.cutoff_hz,
+        "conditioning": result.conditioning.to_dict(),
         "cond": result.cond,
         "rows": result.rows,
         "base_parameters": [
@@ -57,7 +99,8 @@ def to_yaml_dict(result, description, log_path) -> dict:
         "methods": {},
     }
     for m, r in result.results.items():
-        entry = {"values": [float(x) for x in r.theta], "d_tau": float(r.d_tau)}
+        entry = {"values": [float(x) for x in r.theta], "d_tau": float(r.d_tau),
+                 "stacked_error": float(r.d_stacked), "converged": bool(r.converged)}  # fmt: skip
         if r.std is not None:
             entry["std"] = [float(x) for x in r.std]
         out["methods"][m] = entry
@@ -72,7 +115,22 @@ def to_yaml_dict(result, description, log_path) -> dict:
             }
             for mo in result.motors
         ]
+    raw = robot_mapping(description)
+    if raw is not None:
+        out["robot_description"] = raw
     return out
+
+
+def robot_mapping(description) -> dict | None:
+    """The robot description's YAML mapping (from its source file), or None."""
+    source = getattr(description, "source", "")
+    if not source:
+        return None
+    try:
+        with open(source, encoding="utf-8") as f:
+            return yaml.safe_load(f)
+    except (OSError, yaml.YAMLError):
+        return None
 
 
 def read_params(path) -> dict:

@@ -30,6 +30,7 @@ class Run:
     voltage: np.ndarray | None
     torque: bool = False
     highest_harmonic_hz: float | None = None
+    qd: np.ndarray | None = None  # measured joint velocities [rad/s | m/s] (foreign qd<j>)
 
 
 def load_run(path, sample_period_s: float | None = None, mapping=None, description=None) -> Run:
@@ -93,4 +94,5 @@ def _load_foreign(path, mapping, description) -> Run:
         current=data.effort,
         voltage=data.voltage,
         torque=data.torque,
+        qd=data.qd,
     )

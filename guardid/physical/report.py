@@ -13,11 +13,12 @@ METHOD = "consistent"
 """Key of the consistent fit in ``Identification.results`` and params.yaml's ``methods``."""
 
 
-def add_consistent(result, runs, description, effort_is_torque=False, parallel_filter_hz=None):
+def add_consistent(result, runs, description, effort_is_torque=False):
     """Fit the consistent model on ``result``'s rows and add it as ``results['consistent']``.
 
     ``runs``: [(t [s], q [rad], effort)] as given to :func:`guardid.identify.identify`, which
-    made ``result`` (same cut-off, same conditioning). Returns the :class:`ConsistentFit`.
+    made ``result``: conditioned under ``result.conditioning`` (the options identify used,
+    cut-off resolved). Returns the :class:`ConsistentFit`.
     """
     if result.torque_unit != "N m":
         raise GuardidError(
@@ -25,9 +26,8 @@ def add_consistent(result, runs, description, effort_is_torque=False, parallel_f
             "physical parameters need torque"
         )
     _, A, y = stacked_rows(
-        runs, description, result.cutoff_hz, False, effort_is_torque,
-        parallel_filter_hz=parallel_filter_hz,
-    )  # fmt: skip
+        runs, description, result.conditioning, effort_is_torque=effort_is_torque
+    )
     fit = fit_consistent(A, y, description)
     result.results[METHOD] = MethodResult(
         method=METHOD,
@@ -47,10 +47,7 @@ def identify_consistent(t_s, q_rad, effort, description, **kwargs):
     result = identify(t_s, q_rad, effort, description, **kwargs)
     several = isinstance(t_s, (list, tuple))
     runs = list(zip(t_s, q_rad, effort, strict=True)) if several else [(t_s, q_rad, effort)]
-    fit = add_consistent(
-        result, runs, description, kwargs.get("effort_is_torque", False),
-        kwargs.get("parallel_filter_hz"),
-    )  # fmt: skip
+    fit = add_consistent(result, runs, description, kwargs.get("effort_is_torque", False))
     return result, fit
 
 

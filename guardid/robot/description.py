@@ -74,10 +74,21 @@ class Rotor:
         return self.gear_ratio**2 * self.inertia
 
 
+FRICTION_MODELS = ("sign", "tanh", "atan", "stribeck")
+
+
 @dataclass(frozen=True)
 class Friction:
-    """Joint friction: tau_f = viscous*qd + coulomb*sign(qd) + offset [N m or N].
+    """Joint friction: tau_f = viscous*qd + coulomb*s(qd) + offset [N m or N]
+    (+ stribeck*exp(-(qd/stribeck_velocity)^2)*s(qd) with the Stribeck model).
 
+    ``model`` picks the Coulomb shape s: ``sign`` (sign(qd), default), ``tanh``
+    (tanh(qd / velocity_scale)), ``atan`` (atan(qd / velocity_scale), saturating at
+    pi/2 x coulomb, as in the DFKI lab's model), ``stribeck`` (tanh shape plus the
+    Stribeck term, a static friction excess ``stribeck`` [N m or N] that fades over
+    ``stribeck_velocity`` [rad/s or m/s]). ``velocity_scale`` [rad/s or m/s] is required by
+    every model but ``sign``. The smooth models hold through zero velocity, so
+    identification keeps those rows (the sign model drops them).
     ``offset_modelled`` False (YAML ``offset: null``) declares the offset absent: it is 0
     and identification does not estimate it (its column is dropped from the fit).
     """
@@ -86,6 +97,26 @@ class Friction:
     coulomb: float
     offset: float = 0.0
     offset_modelled: bool = True
+    model: str = "sign"
+    velocity_scale: float | None = None
+    stribeck: float = 0.0
+    stribeck_velocity: float | None = None
+
+    def shape(self, qd) -> np.ndarray:
+        """The Coulomb term's shape s(qd) [-] (qd in rad/s or m/s)."""
+        qd = np.asarray(qd, dtype=float)
+        if self.model == "sign":
+            return np.sign(qd)
+        if self.model == "atan":
+            return np.arctan(qd / self.velocity_scale)
+        return np.tanh(qd / self.velocity_scale)
+
+    def stribeck_shape(self, qd) -> np.ndarray:
+        """exp(-(qd / stribeck_velocity)^2) s(qd) [-] (zero unless the Stribeck model)."""
+        qd = np.asarray(qd, dtype=float)
+        if self.model != "stribeck":
+            return np.zeros_like(qd)
+        return np.exp(-((qd / self.stribeck_velocity) ** 2)) * self.shape(qd)
 
 
 @dataclass(frozen=True)

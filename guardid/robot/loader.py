@@ -11,6 +11,7 @@ import yaml
 from guardid.errors import ConfigError
 from guardid.robot.description import (
     DH,
+    FRICTION_MODELS,
     PID,
     STANDARD_NAMES,
     ChainDescription,
@@ -100,6 +101,36 @@ def _parse_chain(ck: Checker, data: dict, source: str) -> ChainDescription:
     )
 
 
+def _friction(ck: Checker, raw, fp: str) -> Friction:
+    opt = ("offset", "model", "velocity_scale", "stribeck", "stribeck_velocity")
+    f = ck.mapping(raw, fp, ("viscous", "coulomb"), opt)
+    no_offset = "offset" in f and f["offset"] is None  # null: not modelled (0)
+    model = ck.string(f.get("model", "sign"), f"{fp}.model", FRICTION_MODELS)
+    scale = strib = None
+    if model != "sign":
+        if f.get("velocity_scale") is None:
+            ck.fail(f"{fp}.velocity_scale", f"required by model {model} [rad/s or m/s]")
+        scale = ck.number(f["velocity_scale"], f"{fp}.velocity_scale", positive=True)
+    elif f.get("velocity_scale") is not None:
+        ck.fail(f"{fp}.velocity_scale", "only with model tanh, atan or stribeck")
+    if model == "stribeck":
+        if f.get("stribeck_velocity") is None:
+            ck.fail(f"{fp}.stribeck_velocity", "required by model stribeck [rad/s or m/s]")
+        strib = ck.number(f["stribeck_velocity"], f"{fp}.stribeck_velocity", positive=True)
+    elif f.get("stribeck") is not None or f.get("stribeck_velocity") is not None:
+        ck.fail(f"{fp}.stribeck", "only with model stribeck")
+    return Friction(
+        ck.number(f["viscous"], f"{fp}.viscous", nonneg=True),
+        ck.number(f["coulomb"], f"{fp}.coulomb", nonneg=True),
+        0.0 if no_offset else ck.number(f.get("offset", 0.0), f"{fp}.offset"),
+        offset_modelled=not no_offset,
+        model=model,
+        velocity_scale=scale,
+        stribeck=ck.number(f.get("stribeck", 0.0), f"{fp}.stribeck", nonneg=True),
+        stribeck_velocity=strib,
+    )
+
+
 def _joint(ck: Checker, raw, path: str, index: int) -> JointDescription:
     opt = ("name", "encoder", "current_sensor", "voltage_sensor", "pid", "rotor")
     ck.mapping(raw, path, ("type", "dh", "limits", "drive", "friction"), opt)
@@ -110,15 +141,7 @@ def _joint(ck: Checker, raw, path: str, index: int) -> JointDescription:
     drive = _drive(ck, raw["drive"], f"{path}.drive")
     friction = None
     if raw["friction"] is not None:
-        fp = f"{path}.friction"
-        f = ck.mapping(raw["friction"], fp, ("viscous", "coulomb"), ("offset",))
-        no_offset = "offset" in f and f["offset"] is None  # null: not modelled (0)
-        friction = Friction(
-            ck.number(f["viscous"], f"{fp}.viscous", nonneg=True),
-            ck.number(f["coulomb"], f"{fp}.coulomb", nonneg=True),
-            0.0 if no_offset else ck.number(f.get("offset", 0.0), f"{fp}.offset"),
-            offset_modelled=not no_offset,
-        )
+        friction = _friction(ck, raw["friction"], f"{path}.friction")
     encoder = None
     if raw.get("encoder") is not None:
         ep = f"{path}.encoder"

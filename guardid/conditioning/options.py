@@ -1,0 +1,84 @@
+"""One object for every conditioning choice: :class:`ConditioningOptions`.
+
+``None`` in a field means "choose from the data" (see :mod:`guardid.identify.cutoff` for the
+cut-off and :func:`guardid.identify.pipeline.identification_rows` for the rest). A params
+file records the options that were *used* (every automatic choice resolved to its value),
+so that ``guardid validate`` can score any parameter set under exactly that conditioning.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields, replace
+
+from guardid.conditioning.filters import DEFAULT_ORDER
+from guardid.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class ConditioningOptions:
+    """How a log is turned into identification rows.
+
+    cutoff_hz : zero-phase Butterworth cut-off on positions and efforts [Hz]; None = chosen
+        from the data (cross-validated among candidates).
+    decimate : keep every k-th conditioned sample; None = new Nyquist >= about the cut-off.
+    stiction_threshold : rows with some |qd_j| below it are dropped [rad/s or m/s]; None =
+        5 % of the peak speed for sign friction, 0 (keep every row) for smooth friction models.
+    stiction_guard_s : also drop rows within this time of such a sample [s]; None = 0.6
+        cut-off periods for guardid logs (stick/slip), 0 for measured-torque logs.
+    flat_is_stuck : flag samples without an encoder count in the period; None = guardid logs.
+    parallel_filter_hz : Gautier's parallel filter on the regressor and the torque [Hz];
+        None = off.
+    order : Butterworth order (applied forward and backward).
+    edge_s : rows within this time of either end are dropped [s]; None = 1 / cut-off.
+    friction_filter : low-pass the regressor's Coulomb (and Stribeck) columns with the same
+        filter as the effort (parallel filtering of the friction jump); None = chosen with
+        the cut-off by cross-validation (when the cut-off is given: off).
+    """
+
+    cutoff_hz: float | None = None
+    decimate: int | None = None
+    stiction_threshold: float | None = None
+    stiction_guard_s: float | None = None
+    flat_is_stuck: bool | None = None
+    parallel_filter_hz: float | None = None
+    order: int = DEFAULT_ORDER
+    edge_s: float | None = None
+    friction_filter: bool | None = None
+
+    def with_(self, **changes) -> ConditioningOptions:
+        """A copy with ``changes`` applied (None values in ``changes`` are ignored)."""
+        return replace(self, **{k: v for k, v in changes.items() if v is not None})
+
+    def to_dict(self) -> dict:
+        """Plain mapping for YAML (floats, ints, bools or None)."""
+        out = asdict(self)
+        for k, v in out.items():
+            if isinstance(v, float):
+                out[k] = float(v)
+        return out
+
+    @classmethod
+    def from_dict(cls, data, where: str = "conditioning") -> ConditioningOptions:
+        """Options from a mapping (e.g. a params file's ``conditioning``); unknown keys and
+        wrong types are one-line :class:`ConfigError` naming ``where``.key."""
+        if data is None:
+            return cls()
+        if not isinstance(data, dict):
+            raise ConfigError(f"{where}: expected a mapping")
+        known = {f.name: f for f in fields(cls)}
+        out = {}
+        for key, value in data.items():
+            if key not in known:
+                raise ConfigError(f"{where}.{key}: unknown (known: {', '.join(known)})")
+            if value is None:
+                out[key] = None
+                continue
+            if key in ("flat_is_stuck", "friction_filter"):
+                if not isinstance(value, bool):
+                    raise ConfigError(f"{where}.{key}: expected true or false, got {value!r}")
+                out[key] = value
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ConfigError(f"{where}.{key}: expected a number, got {value!r}")
+            out[key] = int(value) if key in ("decimate", "order") else float(value)
+        return cls(**out)

@@ -1,0 +1,428 @@
+"""Logs -> identification rows under one :class:`ConditioningOptions`.
+
+:func:`stacked_rows` conditions each run on its own with the same options, computes the base
+regressor of the usable rows and stacks the runs. An automatic cut-off is chosen once for
+all runs (:mod:`guardid.identify.cutoff`, scored by :func:`cutoff_scores`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from guardid.conditioning import condition
+from guardid.conditioning.filters import decimation_factor, zero_phase_lowpass
+from guardid.conditioning.options import ConditioningOptions
+from guardid.conditioning.parallel import parallel_filter
+from guardid.dynamics import build_model
+from guardid.errors import GuardidError
+from guardid.identify.cutoff import CutoffChoice, choose_cutoff_cv
+
+STICTION_GUARD_PERIODS = 0.6
+"""guardid logs: rows within this many cut-off periods of a stuck / reversing sample are
+dropped [-] (stick/slip of the PID-tracked joints smeared by the low-pass)."""
+MOST_ROWS_DROPPED = 0.5
+"""Warn when fewer than this fraction of the conditioned samples are usable [-]."""
+POWER_BEYOND_CUTOFF = 0.1
+"""Warn when the low-pass removes more than this fraction of the effort's power [-]."""
+
+
+@dataclass
+class Rows:
+    """Stacked identification rows and how they were made.
+
+    ``cond``: the runs' conditioned signals joined; ``A`` (M, n, b') base regressor of the
+    identified columns; ``y`` (M, n) effort minus the known torque [N m | N | effort unit];
+    ``options``: the options used, cut-off resolved; ``choice``: the cut-off's
+    cross-validation (None when given); ``warnings``: doubts about the conditioning.
+    """
+
+    cond: object
+    A: np.ndarray
+    y: np.ndarray
+    options: ConditioningOptions
+    choice: CutoffChoice | None = None
+    warnings: list[str] = field(default_factory=list)
+
+    def __iter__(self):  # (cond, A, y), as before
+        return iter((self.cond, self.A, self.y))
+
+
+def free_columns(model, description) -> list[int]:
+    """Indices of the identified base parameters (friction offsets declared absent with
+    ``offset: null`` are left out)."""
+    fixed = {
+        f"Fo{j + 1}"
+        for j, joint in enumerate(description.joints)
+        if joint.friction is not None and not getattr(joint.friction, "offset_modelled", True)
+    }
+    return [i for i, name in enumerate(model.base.names) if name not in fixed]
+
+
+def drive_gain(description) -> np.ndarray:
+    """Current-to-torque gain (n,) [N m/A]; 1 for a joint without drive (torque source)."""
+    gains = []
+    for j in description.joints:
+        d = j.drive
+        gains.append(1.0 if d is None else d.gear_ratio * d.efficiency * d.kt)
+    return np.array(gains)
+
+
+def _smooth_joints(description) -> np.ndarray:
+    """(n,) bool: joints whose friction model is smooth at zero velocity."""
+    return np.array(
+        [j.friction is not None and j.friction.model != "sign" for j in description.joints]
+    )
+
+
+def condition_kwargs(options, fs_hz, cutoff_hz, effort_is_torque, description) -> dict:
+    """Keyword arguments of :func:`guardid.conditioning.condition` for ``options`` with the
+    cut-off ``cutoff_hz`` [Hz] (every automatic choice resolved; see ConditioningOptions)."""
+    o = options
+    kw = {"cutoff_hz": float(cutoff_hz), "order": o.order, "edge_s": o.edge_s}
+    if effort_is_torque:
+        kw["align_period_mean"] = False
+    guard = o.stiction_guard_s
+    if guard is None:
+        guard = 0.0 if effort_is_torque else STICTION_GUARD_PERIODS / cutoff_hz
+    kw["stiction_guard_s"] = guard
+    kw["flat_is_stuck"] = (not effort_is_torque) if o.flat_is_stuck is None else o.flat_is_stuck
+    if o.decimate is not None:
+        kw["decimate"] = o.decimate
+    elif effort_is_torque:
+        kw["decimate"] = decimation_factor(fs_hz, cutoff_hz)
+    else:
+        kw["decimate"] = max(1, int(fs_hz / (2.0 * cutoff_hz)))
+    if o.parallel_filter_hz:
+        kw["decimate"] = 1  # decimation happens after the parallel filter
+    if o.stiction_threshold is not None:
+        kw["stiction_threshold"] = o.stiction_threshold
+    else:  # smooth friction holds through zero velocity: keep those joints' rows
+        kw["stiction_threshold"] = np.where(_smooth_joints(description), 0.0, np.nan)
+    return kw
+
+
+def _gain(description, in_current_units, effort_is_torque):
+    if in_current_units:
+        return None
+    return np.ones(len(description.joints)) if effort_is_torque else drive_gain(description)
+
+
+def _rows_of(model, description, cond, free, in_current_units, mask=None):
+    """(A (M, n, b'), y (M, n), y_raw (M, n)) on the rows of ``mask`` (default all)."""
+    m = slice(None) if mask is None else mask
+    q, qd, qdd = cond.q[m], cond.qd[m], cond.qdd[m]
+    A_all = model.base_regressor(q, qd, qdd)
+    known = model.known_torque(q, qd, qdd)
+    fixed = [i for i in range(A_all.shape[2]) if i not in free]
+    if fixed and not in_current_units:
+        known = known + A_all[:, :, fixed] @ model.base.values(model.params)[fixed]
+    raw = None if cond.tau_raw is None else cond.tau_raw[m] - known
+    return A_all[:, :, free], cond.tau[m] - known, raw
+
+
+def identification_rows(
+    t_s,
+    q_rad,
+    effort,
+    description,
+    options: ConditioningOptions | None = None,
+    *,
+    in_current_units: bool = False,
+    effort_is_torque: bool = False,
+    highest_harmonic_hz: float | None = None,
+):
+    """(conditioned, A (M, n, b'), y (M, n)) of one run: :func:`stacked_rows` on it alone."""
+    return tuple(
+        stacked_rows(
+            [(t_s, q_rad, effort)],
+            description,
+            options,
+            in_current_units=in_current_units,
+            effort_is_torque=effort_is_torque,
+            highest_harmonic_hz=highest_harmonic_hz,
+        )  # fmt: skip
+    )
+
+
+def _condition_run(run, description, options, cutoff_hz, in_current_units, effort_is_torque,
+                   model, free, friction_filter=False):  # fmt: skip
+    """One run (t, q, effort[, qd]) conditioned under ``options`` at ``cutoff_hz`` [Hz]:
+    (conditioned signals, A (M, n, b'), y (M, n), y_raw (M, n), A_plain (M, n, b')) on every
+    conditioned (decimated) sample; the usable rows are ``cond.mask``.
+
+    The regressor is computed on every sample before decimation. With ``friction_filter``
+    its Coulomb (and Stribeck) columns are low-passed with the same zero-phase filter as the
+    effort: the filtered effort carries the friction jump at a reversal smeared over about a
+    cut-off period, and so does the column then (parallel filtering of the one strongly
+    nonlinear term). ``A_plain`` is the regressor without that (the model's prediction).
+    Falls back to no stiction guard when the guard would leave too few rows (3 per
+    identified parameter; said in the notes).
+    """
+    t, q, effort, *rest = run
+    t = np.asarray(t, dtype=float)
+    fs = 1.0 / float(np.median(np.diff(t)))
+    kw = condition_kwargs(options, fs, cutoff_hz, effort_is_torque, description)
+    k = kw.pop("decimate")
+    gain = _gain(description, in_current_units, effort_is_torque)
+    kw["qd_measured"] = rest[0] if rest else None
+    cond = condition(t, q, effort, gain=gain, decimate=1, **kw)
+    if (cond.mask[::k].sum() <= 3 * len(free) and options.stiction_guard_s is None
+            and not effort_is_torque):  # fmt: skip
+        kw.update(stiction_guard_s=0.0, flat_is_stuck=False)
+        if options.decimate is None and not options.parallel_filter_hz:
+            k = decimation_factor(fs, cutoff_hz)
+        cond = condition(t, q, effort, gain=gain, decimate=1, **kw)
+        cond.notes.append("too few rows with the stiction guard: guard disabled")
+    A, y, raw = _rows_of(model, description, cond, free, in_current_units)
+    plain = A
+    cols = friction_columns(model, free)
+    if cols and friction_filter:
+        A = A.copy()
+        block = A[:, :, cols]
+        flat = zero_phase_lowpass(block.reshape(len(block), -1), fs, cutoff_hz, options.order)
+        A[:, :, cols] = flat.reshape(block.shape)
+        cond.notes.append("Coulomb columns low-passed like the effort")
+    if k > 1:
+        fields = ("t", "q", "qd", "qdd", "tau", "mask", "stiction", "tau_raw")
+        dropped = {key: int(round(v / k)) for key, v in cond.dropped.items()}
+        cond = replace(
+            cond, decimation=k, **{f: getattr(cond, f)[::k] for f in fields}, dropped=dropped,
+            notes=[*cond.notes, f"decimated by {k}: {fs / k:.4g} Hz"],
+        )  # fmt: skip
+        A, y, raw, plain = A[::k], y[::k], raw[::k], plain[::k]
+    return cond, A, y, raw, plain
+
+
+def friction_columns(model, free) -> list[int]:
+    """Positions (among the identified columns) of the Coulomb and Stribeck columns of the
+    joints with a smooth friction model (a sign model's rows near reversals are dropped:
+    its jump is never inside the rows, and a stuck joint does not follow it anyway)."""
+    names = [model.base.names[i] for i in free]
+    smooth = {
+        str(j + 1)
+        for j, joint in enumerate(model.description.joints)
+        if joint.friction is not None and joint.friction.model != "sign"
+    }
+    return [i for i, n in enumerate(names) if n.startswith(("Fc", "Fs")) and n[2:] in smooth]
+
+
+def _parallel(cond, A_all, y, free, hz):
+    """Gautier's parallel filter at ``hz`` [Hz] on the regressor and the torque of every
+    conditioned sample, then decimation (docs/FOREIGN_LOGS.md)."""
+    fs = 1.0 / float(np.median(np.diff(cond.t)))
+    if not 0.0 < hz < 0.5 * fs:
+        raise GuardidError(f"--parallel-filter: {hz:g} Hz must be in (0, {0.5 * fs:g}) Hz")
+    sig = (cond.q, cond.qd, cond.qdd, cond.stiction)
+    k, (A_all, y, tau, mask, q, qd, qdd, stuck) = parallel_filter(
+        fs, hz, A_all, y, cond.tau, cond.mask, *sig
+    )
+    t = cond.t[::k]
+    mask = mask & (t >= t[0] + 1.0 / hz) & (t <= t[-1] - 1.0 / hz)
+    note = f"parallel filter {hz:.3g} Hz on the regressor and the torque, then decimation by {k}"
+    raw = None if cond.tau_raw is None else cond.tau_raw[::k]
+    cond = replace(
+        cond, t=t, q=q, qd=qd, qdd=qdd, tau=tau, mask=mask, stiction=stuck, tau_raw=raw,
+        decimation=cond.decimation * k, notes=[*cond.notes, note],
+    )  # fmt: skip
+    return cond, A_all[mask], y[mask]
+
+
+def cutoff_scores(runs, description, options, cands, blocks, in_current_units, effort_is_torque):
+    """Per candidate cut-off [Hz]: (held-out relative rms error of the measured effort,
+    full-data LS estimate) by K-fold cross-validation over ``blocks`` contiguous time blocks
+    per run (:mod:`guardid.identify.cutoff`)."""
+    model = build_model(description)
+    free = free_columns(model, description)
+    t0 = np.asarray(runs[0][0], dtype=float)
+    fs = 1.0 / float(np.median(np.diff(t0)))
+    common = options.with_(parallel_filter_hz=None)
+    k = condition_kwargs(common, fs, max(cands), effort_is_torque, description)["decimate"]
+    common = replace(common, decimate=k, parallel_filter_hz=None)
+    flags = (in_current_units, effort_is_torque, model, free)
+    middle = cands[len(cands) // 2]  # evaluation rows: those usable under the middle one
+    ref = [_condition_run(r, description, common, middle, *flags)[0] for r in runs]
+    variants = [options.friction_filter]
+    if options.friction_filter is None:
+        variants = [False, True] if friction_columns(model, free) else [False]
+    scores, thetas, chosen = [], [], []
+    for fc in cands:
+        best = (np.inf, None, False)
+        for ff in variants:
+            parts = []  # (block id, A_fit, y_fit, A_eval, y_raw_eval)
+            for r_i, (run, rc) in enumerate(zip(runs, ref, strict=True)):
+                c, A, y, raw, plain = _condition_run(run, description, common, fc, *flags, ff)
+                n = len(c.t)
+                block = np.minimum((np.arange(n) * blocks) // max(n, 1), blocks - 1)
+                evaluate = rc.mask[:n] if len(rc.mask) >= n else np.zeros(n, bool)
+                for b in range(blocks):
+                    sel = block == b
+                    parts.append(((r_i, b), A[sel & c.mask], y[sel & c.mask],
+                                  plain[sel & evaluate], raw[sel & evaluate]))  # fmt: skip
+            score, theta = _kfold(parts, min_rows=3 * len(free))
+            if not score >= best[0]:  # NaN never wins
+                best = (score, theta, bool(ff))
+        scores.append(best[0] if np.isfinite(best[0]) else np.nan)
+        thetas.append(best[1])
+        chosen.append(best[2])
+    return scores, thetas, chosen
+
+
+def _kfold(parts, min_rows: int):
+    """Held-out relative rms error over all parts (each left out once) and the full fit;
+    NaN when a fold keeps ``min_rows`` fitting rows or fewer."""
+    p = parts[0][1].shape[2]
+    total = sum(len(A) for _, A, _, _, _ in parts)
+    normals = []
+    for _, A, y, _, _ in parts:
+        a = A.reshape(-1, p)
+        normals.append((a.T @ a, a.T @ y.reshape(-1)))
+    G = sum(n[0] for n in normals)
+    h = sum(n[1] for n in normals)
+    theta_full = _solve(G, h)
+    res2 = ref2 = 0.0
+    for (_, A, _, Ae, ye), (g, v) in zip(parts, normals, strict=True):
+        if len(ye) == 0:
+            continue
+        theta = _solve(G - g, h - v) if total - len(A) > min_rows else None
+        if theta is None:
+            return np.nan, theta_full
+        r = ye - Ae @ theta
+        res2 += float(np.sum(r**2))
+        ref2 += float(np.sum(ye**2))
+    return (np.sqrt(res2 / ref2) if ref2 > 0 else np.nan), theta_full
+
+
+def _solve(G, h):
+    """Solution of G theta = h with column scaling; None if singular."""
+    d = np.sqrt(np.clip(np.diag(G), 1e-300, None))
+    try:
+        x = np.linalg.solve(G / np.outer(d, d), h / d)
+    except np.linalg.LinAlgError:
+        return None
+    return x / d
+
+
+def stacked_rows(
+    runs,
+    description,
+    options: ConditioningOptions | None = None,
+    *,
+    in_current_units: bool = False,
+    effort_is_torque: bool = False,
+    highest_harmonic_hz: float | None = None,
+) -> Rows:
+    """Rows of several runs (t [s] (N,), q (N, n), effort (N, n)), each conditioned on its
+    own under the same ``options`` and stacked (times shifted so that they keep increasing).
+
+    ``options.cutoff_hz`` None: chosen by cross-validation over the runs
+    (:func:`guardid.identify.cutoff.choose_cutoff_cv`, informed by ``highest_harmonic_hz``
+    [Hz], the excitation's highest harmonic from a guardid log header).
+    ``effort_is_torque``: the effort is measured joint torque (gain 1, instantaneous
+    samples); ``in_current_units``: no current-to-torque gain (y in the effort's unit).
+    """
+    options = options or ConditioningOptions()
+    runs = list(runs)
+    model = build_model(description)
+    free = free_columns(model, description)
+    choice = None
+    cutoff = options.cutoff_hz
+    if cutoff is None:
+        fs = 1.0 / float(np.median(np.diff(np.asarray(runs[0][0], dtype=float))))
+
+        def score(cands, blocks):
+            return cutoff_scores(runs, description, options, cands, blocks, in_current_units,
+                                 effort_is_torque)  # fmt: skip
+
+        choice = choose_cutoff_cv(runs, score, fs, highest_harmonic_hz)
+        cutoff = choice.cutoff_hz
+    ff = options.friction_filter
+    if ff is None:
+        ff = bool(choice.friction_filter) if choice is not None else False
+    used = replace(options, cutoff_hz=float(cutoff), friction_filter=ff)
+    conds, As, ys = [], [], []
+    for run in runs:
+        c, A, y, _, _ = _condition_run(run, description, used, cutoff, in_current_units,
+                                       effort_is_torque, model, free, ff)  # fmt: skip
+        if used.parallel_filter_hz:
+            c, A, y = _parallel(c, A, y, free, used.parallel_filter_hz)
+        else:
+            A, y = A[c.mask], y[c.mask]
+        conds.append(c)
+        As.append(A)
+        ys.append(y)
+    A, y = np.concatenate(As), np.concatenate(ys)
+    if len(A) <= len(free):
+        raise GuardidError(
+            f"only {len(A)} usable rows after conditioning (need more than {len(free)}): "
+            "the run is too short or the joints hardly move"
+        )
+    joined = _join(conds)
+    if choice is not None:
+        joined.notes.insert(0, f"cut-off {cutoff:g} Hz: {choice.reason}")
+    else:
+        joined.notes.insert(0, f"cut-off {cutoff:g} Hz set by the caller")
+    return Rows(joined, A, y, used, choice, _doubts(conds, choice))
+
+
+def _join(conds):
+    if len(conds) == 1:
+        return replace(conds[0], notes=[n for n in conds[0].notes if not n.startswith("cut-off")])
+    ts, start = [], 0.0
+    for c in conds:
+        ts.append(c.t - c.t[0] + start)
+        start = ts[-1][-1] + float(np.median(np.diff(c.t)))
+    notes = [n for n in conds[0].notes if not n.startswith("cut-off")]
+    notes.append(f"{len(conds)} runs conditioned separately, rows stacked")
+    dropped = {k: sum(c.dropped.get(k, 0) for c in conds) for k in conds[0].dropped}
+    raw = None
+    if all(c.tau_raw is not None for c in conds):
+        raw = np.concatenate([c.tau_raw for c in conds])
+    return replace(
+        conds[0],
+        t=np.concatenate(ts),
+        **{f: np.concatenate([getattr(c, f) for c in conds])
+           for f in ("q", "qd", "qdd", "tau", "mask", "stiction")},
+        tau_raw=raw, dropped=dropped, notes=notes,
+    )  # fmt: skip
+
+
+def rows_summary(cond) -> str:
+    """'rows: M of N conditioned samples used; dropped: ...' for the report."""
+    n, used = len(cond.mask), int(cond.mask.sum())
+    why = ", ".join(f"{v} {k}" for k, v in cond.dropped.items() if v)
+    dec = f" (after decimation by {cond.decimation})" if cond.decimation > 1 else ""
+    return f"rows: {used} of {n} conditioned samples{dec} used" + (
+        f"; dropped {why}" if why else ""
+    )
+
+
+def _doubts(conds, choice) -> list[str]:
+    """Warnings about the conditioning: most rows dropped, effort power beyond the cut-off,
+    a cross-validation minimum at the edge of the candidates."""
+    out = []
+    n = sum(len(c.mask) for c in conds)
+    used = sum(int(c.mask.sum()) for c in conds)
+    if n and used < MOST_ROWS_DROPPED * n:
+        out.append(
+            f"only {used} of {n} conditioned samples usable ({100 * used / n:.0f} %): the fit "
+            "rests on a minority of the data (see the dropped rows above)"
+        )
+    if all(c.tau_raw is not None for c in conds):
+        raw = np.concatenate([c.tau_raw - c.tau_raw.mean(0) for c in conds])
+        cut = np.concatenate([c.tau_raw - c.tau for c in conds])
+        total = float(np.sum(raw**2))
+        frac = float(np.sum(cut**2)) / total if total > 0 else 0.0
+        if frac > POWER_BEYOND_CUTOFF:
+            out.append(
+                f"{100 * frac:.0f} % of the effort's power lies beyond the {conds[0].cutoff_hz:g} "
+                "Hz cut-off (noise, or motion the model does not see): check the cut-off"
+            )
+    if choice is not None and len(choice.candidates) > 1:
+        if choice.cutoff_hz in (choice.candidates[0], choice.candidates[-1]):
+            out.append(
+                f"the cut-off {choice.cutoff_hz:g} Hz is at the edge of the candidates "
+                f"({choice.candidates[0]:g}-{choice.candidates[-1]:g} Hz): the best may lie beyond"
+            )
+    return out

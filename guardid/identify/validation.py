@@ -1,0 +1,294 @@
+"""Neutral validation: several parameter sets scored on the same rows of the same runs.
+
+Every parameter set is scored under one conditioning (the same cut-off, rows and filter for
+all), per run:
+
+* the headline: the stacked relative rms error over all joints,
+  e = rms(tau - tau_model) / rms(tau), every joint's rows in one vector;
+* per joint: the rms error in the joint's unit (N m, N, or A in current units), and the
+  relative error rms_j(tau - tau_model) / rms_j(tau) only where the joint's effort is not
+  negligible (rms_j(tau) >= :data:`PASSIVE_FRACTION` x the largest joint's): a passive
+  joint (commanded torque zero, as in an underactuated pendulum) is named as such.
+
+A parameter set is a params file's method (``a.yaml:LS``), or a *reference values file* of
+base-parameter values typed in by a user (docs/VALIDATION.md)::
+
+    guardid-reference: 1
+    label: DFKI published           # optional, default the file name
+    robot: dfki_double_pendulum     # optional; checked against the robot when given
+    friction: {model: atan, velocity_scale: 0.01}   # optional: the set's friction shape
+    values: {ZZ1R: 0.1107, MX1R: 0.3491, MX2R: 0.1111, ZZ2R: 0.02392, Ia2: 0.002757}
+
+Base parameters a reference file leaves out take the robot description's values (listed).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import yaml
+
+from guardid.conditioning.options import ConditioningOptions
+from guardid.dynamics import build_model
+from guardid.errors import ConfigError
+from guardid.robot.description import FRICTION_MODELS
+
+PASSIVE_FRACTION = 0.05
+"""A joint whose effort rms is below this fraction of the largest joint's is passive [-]."""
+
+
+@dataclass
+class ParameterSet:
+    """Named base-parameter values (``values``: name -> SI value) for ``description``."""
+
+    label: str
+    values: dict[str, float]
+    description: object
+    defaulted: list[str] = field(default_factory=list)
+
+
+@dataclass
+class Score:
+    """One parameter set on one run: stacked relative error [-], per joint rms error [joint
+    unit] (n,) and relative error (n,) (NaN for a passive joint), rows used."""
+
+    label: str
+    run: str
+    stacked: float
+    rms: np.ndarray
+    relative: np.ndarray
+    passive: np.ndarray
+    rows: int
+    ref2: float = 0.0  # sum of tau^2 over the rows (to stack runs)
+
+
+def joint_units(description, current_units: bool = False) -> list[str]:
+    """Effort unit per joint: 'N m' (revolute), 'N' (prismatic), 'A' in current units."""
+    if current_units:
+        return ["A"] * len(description.joints)
+    return ["N" if j.type == "prismatic" else "N m" for j in description.joints]
+
+
+def with_friction(description, friction: dict | None, where: str):
+    """``description`` with every joint's friction shape replaced (model, velocity_scale)."""
+    if not friction:
+        return description
+    if not isinstance(friction, dict):
+        raise ConfigError(f"{where}: expected a mapping {{model, velocity_scale}}")
+    unknown = set(friction) - {"model", "velocity_scale"}
+    if unknown:
+        raise ConfigError(f"{where}.{sorted(unknown)[0]}: unknown (known: model, velocity_scale)")
+    model = friction.get("model", "sign")
+    if model not in FRICTION_MODELS or model == "stribeck":
+        raise ConfigError(f"{where}.model: expected sign, tanh or atan, got {model!r}")
+    scale = friction.get("velocity_scale")
+    if model != "sign" and (not isinstance(scale, (int, float)) or scale <= 0):
+        raise ConfigError(f"{where}.velocity_scale: expected a positive number [rad/s or m/s]")
+    joints = [
+        j if j.friction is None else replace(
+            j, friction=replace(j.friction, model=model,
+                                velocity_scale=None if model == "sign" else float(scale))
+        )
+        for j in description.joints
+    ]  # fmt: skip
+    return replace(description, joints=joints)
+
+
+def base_names(description) -> tuple[str, ...]:
+    """All base parameter names of ``description``'s model."""
+    return tuple(build_model(description).base.names)
+
+
+def reference_set(path, description) -> ParameterSet:
+    """A reference values file (module docstring) for ``description``."""
+    data = _yaml(path)
+    if data.get("guardid-reference") != 1:
+        raise ConfigError(f"{path}: guardid-reference: expected 1 (a reference values file)")
+    unknown = set(data) - {"guardid-reference", "label", "robot", "friction", "values"}
+    if unknown:
+        raise ConfigError(f"{path}: {sorted(unknown)[0]}: unknown key")
+    robot = data.get("robot")
+    if robot is not None and robot != description.name:
+        raise ConfigError(f"{path}: robot: {robot}, but the runs are {description.name}")
+    desc = with_friction(description, data.get("friction"), f"{path}: friction")
+    values = data.get("values")
+    if not isinstance(values, dict) or not values:
+        raise ConfigError(f"{path}: values: expected a mapping of base parameter: value")
+    names = base_names(desc)
+    out = {}
+    for name, value in values.items():
+        if name not in names:
+            raise ConfigError(f"{path}: values.{name}: not a base parameter of "
+                              f"{description.name} ({', '.join(names)})")  # fmt: skip
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"{path}: values.{name}: expected a number, got {value!r}")
+        out[name] = float(value)
+    model = build_model(desc)
+    nominal = dict(zip(names, model.base.values(model.params), strict=True))
+    from guardid.identify.rows import free_columns
+
+    identified = {model.base.names[i] for i in free_columns(model, desc)}
+    defaulted = [n for n in names if n not in out and n in identified]
+    out.update({n: float(nominal[n]) for n in names if n not in out})
+    label = str(data.get("label") or path)
+    return ParameterSet(label, out, desc, defaulted)
+
+
+def params_sets(path, params: dict, description) -> list[ParameterSet]:
+    """One :class:`ParameterSet` per method of a params file written by identify."""
+    names = [p["name"] for p in params["base_parameters"]]
+    model = build_model(description)
+    nominal = dict(zip(model.base.names, model.base.values(model.params), strict=True))
+    missing = [n for n in names if n not in nominal]
+    if missing:
+        raise ConfigError(f"{path}: base_parameters: {missing[0]} is not a base parameter of "
+                          f"{description.name}")  # fmt: skip
+    out = []
+    for m, entry in params["methods"].items():
+        theta = entry.get("values") if isinstance(entry, dict) else None
+        if not isinstance(theta, list) or len(theta) != len(names):
+            raise ConfigError(f"{path}: methods.{m}.values: expected {len(names)} numbers")
+        values = dict(nominal)  # parameters identification does not estimate keep the YAML's
+        values.update({n: float(v) for n, v in zip(names, theta, strict=True)})
+        out.append(ParameterSet(f"{path}:{m.upper()}", values, description))
+    return out
+
+
+def score_sets(rows_per_run, sets, run_names, current_units=False) -> list[Score]:
+    """Score every set on every run.
+
+    ``rows_per_run``: per run the conditioned signals (``q, qd, qdd, tau, mask``) under the
+    one conditioning; the usable rows (``mask``) are scored.
+    """
+    out = []
+    for cond, name in zip(rows_per_run, run_names, strict=True):
+        m = cond.mask
+        q, qd, qdd, tau = cond.q[m], cond.qd[m], cond.qdd[m], cond.tau[m]
+        rms_tau = np.sqrt(np.mean(tau**2, axis=0))
+        passive = rms_tau < PASSIVE_FRACTION * rms_tau.max()
+        for s in sets:
+            model = build_model(s.description)
+            theta = np.array([s.values[n] for n in model.base.names])
+            pred = model.base_regressor(q, qd, qdd) @ theta + model.known_torque(q, qd, qdd)
+            r = tau - pred
+            rms = np.sqrt(np.mean(r**2, axis=0))
+            rel = np.where(passive, np.nan, rms / np.where(rms_tau > 0, rms_tau, 1.0))
+            stacked = float(np.sqrt(np.mean(r**2)) / np.sqrt(np.mean(tau**2)))
+            out.append(Score(s.label, name, stacked, rms, rel, passive, int(m.sum()),
+                             float(np.sum(tau**2))))  # fmt: skip
+    return out
+
+
+def table(scores, description, current_units=False) -> str:
+    """Per run, one line per parameter set: stacked error, then per joint rms (relative)."""
+    units = joint_units(description, current_units)
+    joints = [j.name for j in description.joints]
+    width = max(len(s.label) for s in scores) + 2
+    lines = []
+    for run in dict.fromkeys(s.run for s in scores):
+        mine = [s for s in scores if s.run == run]
+        lines.append(f"run {run} ({mine[0].rows} rows)")
+        head = f"  {'parameter set':{width}s} {'stacked':>8s}"
+        for j, u in zip(joints, units, strict=True):
+            head += f"  {j + ' rms [' + u + '] (rel.)':>28s}"
+        lines.append(head)
+        for s in mine:
+            line = f"  {s.label:{width}s} {100 * s.stacked:7.2f}%"
+            for k in range(len(joints)):
+                rel = "passive" if s.passive[k] else f"{100 * s.relative[k]:.2f} %"
+                line += f"  {f'{s.rms[k]:.4g} ({rel})':>28s}"
+            lines.append(line)
+    return "\n".join(lines)
+
+
+def _yaml(path) -> dict:
+    try:
+        with open(path, encoding="utf-8") as f:
+            data = yaml.safe_load(f)
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read: {exc.strerror}") from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: invalid YAML: {str(exc).splitlines()[0]}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: expected a mapping")
+    return data
+
+
+def load_sets(path, description) -> list[ParameterSet]:
+    """Parameter sets of ``path``: a params file (one per method) or a reference file."""
+    from guardid.identify.report import read_params
+
+    data = _yaml(path)
+    if "guardid-reference" in data:
+        return [reference_set(path, description)]
+    return params_sets(path, read_params(path), description)
+
+
+def first_params(paths):
+    """(path, data) of the first params file among ``paths`` (not a reference file), or ()."""
+    from guardid.identify.report import read_params
+
+    for path in paths:
+        if "guardid-reference" not in _yaml(path):
+            return (path, read_params(path))
+    return ()
+
+
+def stored_robot(path, data):
+    """The robot a params file was identified for: its stored description (a
+    ChainDescription), else its robot name (older files)."""
+    from guardid.robot.loader import parse_robot
+
+    raw = data.get("robot_description")
+    if raw is None:
+        return data["robot"]
+    return parse_robot(raw, f"{path}: robot_description", source=str(path))
+
+
+def stored_conditioning(path, data) -> ConditioningOptions:
+    """The conditioning a params file was identified under (older files: cutoff_hz and
+    parallel_filter_hz at the top level)."""
+    if "conditioning" in data:
+        return ConditioningOptions.from_dict(data["conditioning"], f"{path}: conditioning")
+    return ConditioningOptions(
+        cutoff_hz=data.get("cutoff_hz"), parallel_filter_hz=data.get("parallel_filter_hz")
+    )
+
+
+def validate_runs(runs, names, description, sets, options, current_units=False) -> str:
+    """The ``guardid validate`` report: every set on every run under ``options``."""
+    from guardid.identify.rows import stacked_rows
+
+    torque = bool(runs[0].torque)
+    arrays = [_run_tuple(r) for r in runs]
+    kw = {"in_current_units": current_units, "effort_is_torque": torque}
+    if options.cutoff_hz is None:
+        chosen = stacked_rows(arrays, description, options, **kw)
+        head = f"conditioning: {chosen.cond.notes[0]}"
+        options = chosen.options
+    else:
+        head = f"conditioning: cut-off {options.cutoff_hz:g} Hz (the first params file's or given)"
+    if options.parallel_filter_hz:
+        head += f", parallel filter {options.parallel_filter_hz:g} Hz"
+    conds = [stacked_rows([a], description, options, **kw).cond for a in arrays]
+    scores = score_sets(conds, sets, [str(n) for n in names], current_units)
+    lines = [head + "; the same rows for every parameter set"]
+    for s in sets:
+        if s.defaulted:
+            lines.append(f"{s.label}: not given, the robot description's values: "
+                         + ", ".join(s.defaulted))  # fmt: skip
+    lines.append(table(scores, description, current_units))
+    if len(runs) > 1:
+        lines.append("all runs, stacked relative rms error:")
+        for s in sets:
+            mine = [x for x in scores if x.label == s.label]
+            num = sum(x.stacked**2 * x.ref2 for x in mine)
+            den = sum(x.ref2 for x in mine)
+            lines.append(f"  {s.label}: {100 * np.sqrt(num / den):.2f} %")
+    return "\n".join(lines)
+
+
+def _run_tuple(run):
+    qd = getattr(run, "qd", None)
+    return (run.t, run.q, run.current) if qd is None else (run.t, run.q, run.current, qd)
