@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from guardid.conditioning.options import ConditioningOptions
 from guardid.identify.foreign import parse_mapping
 from guardid.identify.pipeline import identified_names, stacked_rows
 from guardid.identify.runs import load_run
@@ -61,8 +62,9 @@ def realdata() -> None:
     for k in range(3):
         run = load_run(DATA / f"trajectory_0{k}.csv", mapping=mapping, description=desc)
         _, A, y = stacked_rows(
-            [(run.t, run.q, run.current)], desc, 5.0, False, True, parallel_filter_hz=3.0
-        )
+            [(run.t, run.q, run.current)], desc,
+            ConditioningOptions(cutoff_hz=5.0, parallel_filter_hz=3.0), effort_is_torque=True,
+        )  # fmt: skip
         rows[k] = (A, y)
     print("held out | LS error | consistent error | consistent links physical")
     for out in range(3):
@@ -103,9 +105,8 @@ def guard(seeds: int) -> None:
             from guardid.online.offline import log_highest_harmonic
 
             _, A, y = stacked_rows(
-                [(r.t, r.q, r.current)], desc, None, False, False,
-                highest_harmonic_hz=log_highest_harmonic(p),
-            )  # fmt: skip
+                [(r.t, r.q, r.current)], desc, highest_harmonic_hz=log_highest_harmonic(p)
+            )
             sets.append((A, y))
         (A, y), held = sets
         theta_ls, std = ls(A, y)
@@ -153,9 +154,8 @@ def urdf(seeds: int) -> None:
             from guardid.online.offline import log_highest_harmonic
 
             _, A, y = stacked_rows(
-                [(r.t, r.q, r.current)], desc, None, False, False,
-                highest_harmonic_hz=log_highest_harmonic(p),
-            )  # fmt: skip
+                [(r.t, r.q, r.current)], desc, highest_harmonic_hz=log_highest_harmonic(p)
+            )
             theta, std = ls(A, y)
             fit = fit_consistent(A, y, desc)
             names = [n.rstrip("R") for n in identified_names(desc)]
