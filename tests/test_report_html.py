@@ -21,7 +21,7 @@ import pytest
 
 from guardid.errors import GuardidError
 from guardid.report import SECTIONS, write_report
-from guardid.report.html import residual_spectrum, verdict
+from guardid.report.html import VALIDATION_SECTIONS, residual_spectrum, verdict
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 CHROMIUM_FLAGS = [
@@ -106,7 +106,8 @@ def report(tmp_path_factory):
     for args in (
         ("excite", "--kind", "sines", "-o", "s.yaml"),
         ("capture", "--trajectory", "s.yaml", "--duration", "20", "--quiet", "-o", "s.csv"),
-        ("identify", "s.csv", "--method", "ls,wls,rls", "--report", "r.html"),
+        ("identify", "s.csv", "--method", "ls,wls,rls", "--report", "r.html", "-o", "p.yaml"),
+        ("validate", "s.csv", "--params", "p.yaml", "--report", "v.html"),
     ):
         done = _cli(*args, cwd=d)
         assert done.returncode == 0, done.stderr
@@ -165,3 +166,14 @@ def test_docs_screenshot_is_in_the_readme():
     root = Path(__file__).resolve().parents[1]
     assert (root / "docs" / "report.png").exists()
     assert "docs/report.png" in (root / "README.md").read_text(encoding="utf-8")
+
+
+def test_validation_report_renders_with_every_section(report, tmp_path):
+    url = (report.parent / "v.html").resolve().as_uri()
+    done = _chromium("--dump-dom", url, tmp=tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    for sid, heading in VALIDATION_SECTIONS.items():
+        assert f'id="{sid}"' in done.stdout, sid
+        assert heading in done.stdout
+    assert done.stdout.count("<svg") >= 2  # effort and spectrum of the one run
+    assert "p.yaml:LS" in done.stdout and "p.yaml:WLS" in done.stdout

@@ -301,8 +301,15 @@ def _cross_validate(logs, runs, description, methods, options, current_units, be
     default=None,
     help="Parallel filter [Hz] [default: the first params file's conditioning, else off].",
 )
+@click.option(
+    "--report",
+    "report_path",
+    default=None,
+    help="Write a self-contained HTML report: the scores per run and set, measured and "
+    "predicted effort of the best set, residual spectra (needs matplotlib).",
+)
 @_foreign_options
-def validate(log, params_paths, robot, cutoff, parallel_hz, **foreign):
+def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, **foreign):
     """Score parameter sets on runs LOG [LOG ...]: torque prediction error, all joints stacked.
 
     Every set (each method of each params file, each reference values file) is scored under
@@ -322,4 +329,17 @@ def validate(log, params_paths, robot, cutoff, parallel_hz, **foreign):
     )
     sets = [s for path in params_paths for s in v.load_sets(path, description)]
     current_units = bool(first) and first[1].get("torque_unit") not in ("N m", None)
-    click.echo(v.validate_runs(runs, log, description, sets, options, current_units))
+    if report_path:
+        from guardid.commands.outputs import check_output
+
+        inputs = [("LOG", x) for x in log] + [("--params", x) for x in params_paths]
+        check_output(report_path, inputs, option="--report")
+    keep = {} if report_path else None
+    click.echo(v.validate_runs(runs, log, description, sets, options, current_units, keep=keep))
+    if report_path:
+        from guardid.report import write_report
+        from guardid.report.cli import validate_page
+
+        page = validate_page(description, log, sets, keep, current_units)
+        write_report(report_path, page, inputs_paths=[*log, *params_paths])
+        click.echo(f"report written to {report_path}")

@@ -155,11 +155,12 @@ def params_sets(path, params: dict, description) -> list[ParameterSet]:
     return out
 
 
-def score_sets(rows_per_run, sets, run_names, current_units=False) -> list[Score]:
+def score_sets(rows_per_run, sets, run_names, current_units=False, preds=None) -> list[Score]:
     """Score every set on every run.
 
     ``rows_per_run``: per run the conditioned signals (``q, qd, qdd, tau, mask``) under the
-    one conditioning; the usable rows (``mask``) are scored.
+    one conditioning; the usable rows (``mask``) are scored. ``preds`` (a dict, optional)
+    receives (run name, set label) -> the predicted effort of the scored rows (M, n).
     """
     out = []
     for cond, name in zip(rows_per_run, run_names, strict=True):
@@ -171,6 +172,8 @@ def score_sets(rows_per_run, sets, run_names, current_units=False) -> list[Score
             model = build_model(s.description)
             theta = np.array([s.values[n] for n in model.base.names])
             pred = model.base_regressor(q, qd, qdd) @ theta + model.known_torque(q, qd, qdd)
+            if preds is not None:
+                preds[(name, s.label)] = pred
             r = tau - pred
             rms = np.sqrt(np.mean(r**2, axis=0))
             rel = np.where(passive, np.nan, rms / np.where(rms_tau > 0, rms_tau, 1.0))
@@ -256,8 +259,12 @@ def stored_conditioning(path, data) -> ConditioningOptions:
     )
 
 
-def validate_runs(runs, names, description, sets, options, current_units=False) -> str:
-    """The ``guardid validate`` report: every set on every run under ``options``."""
+def validate_runs(runs, names, description, sets, options, current_units=False, keep=None) -> str:
+    """The ``guardid validate`` report: every set on every run under ``options``.
+
+    ``keep`` (a dict, optional) receives what the HTML report draws: ``conds`` (per run),
+    ``scores``, ``preds`` ((run, label) -> predicted effort) and ``head``.
+    """
     from guardid.identify.rows import stacked_rows
 
     torque = bool(runs[0].torque)
@@ -272,7 +279,10 @@ def validate_runs(runs, names, description, sets, options, current_units=False) 
     if options.parallel_filter_hz:
         head += f", parallel filter {options.parallel_filter_hz:g} Hz"
     conds = [stacked_rows([a], description, options, **kw).cond for a in arrays]
-    scores = score_sets(conds, sets, [str(n) for n in names], current_units)
+    preds = {} if keep is not None else None
+    scores = score_sets(conds, sets, [str(n) for n in names], current_units, preds=preds)
+    if keep is not None:
+        keep.update(conds=conds, scores=scores, preds=preds, head=head)
     lines = [head + "; the same rows for every parameter set"]
     for s in sets:
         if s.defaulted:

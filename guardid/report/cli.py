@@ -5,7 +5,12 @@ from __future__ import annotations
 import shlex
 import sys
 
-from guardid.report.html import ReportInputs, identification_report
+from guardid.report.html import (
+    ReportInputs,
+    ValidationRun,
+    identification_report,
+    validation_report,
+)
 
 
 def effort_units(description, torque_unit: str) -> tuple[str, ...]:
@@ -34,3 +39,34 @@ def identify_page(result, description, runs, logs, cond, A, y, tracker) -> str:
         command=command_line(),
     )
     return identification_report(result, inputs, title=f"guardid: {description.name} identified")
+
+
+def validate_page(description, names, sets, keep, current_units: bool) -> str:
+    """The ``validate --report`` page from what :func:`guardid.identify.validation.
+    validate_runs` kept (its ``keep`` dict)."""
+    from guardid.identify.validation import joint_units
+
+    joints = [j.name for j in description.joints]
+    runs = []
+    for cond, name in zip(keep["conds"], names, strict=True):
+        name = str(name)
+        mine = {s.label: s for s in keep["scores"] if s.run == name}
+        m = cond.mask
+        passive = tuple(
+            j for j, p in zip(joints, next(iter(mine.values())).passive, strict=True) if p
+        )
+        runs.append(
+            ValidationRun(
+                name=name,
+                t_rows=cond.t[m],
+                y=cond.tau[m],
+                preds={s.label: keep["preds"][(name, s.label)] for s in sets},
+                scores={k: (v.stacked, v.rms) for k, v in mine.items()},
+                passive=passive,
+            )  # fmt: skip
+        )
+    units = joint_units(description, current_units)
+    return validation_report(
+        runs, joints, units, command=command_line(), notes=[keep["head"]],
+        title=f"guardid: {description.name} validated",
+    )  # fmt: skip

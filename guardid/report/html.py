@@ -400,36 +400,36 @@ def identification_report(result, inputs: ReportInputs, title: str | None = None
 
 @dataclass
 class ValidationRun:
-    """One held-out run of a validation report: its rows and each parameter set's scores.
+    """One held-out run of a validation report.
 
-    ``scores``: parameter-set label -> (stacked relative rms error [-], per-joint rms error
-    in the joint's unit (n,)). ``passive``: joint names whose effort is negligible.
+    ``t_rows`` (M,) [s] and ``y`` (M, n) the scored rows' times and measured effort;
+    ``preds``: parameter-set label -> predicted effort (M, n); ``scores``: label ->
+    (stacked relative rms error [-], per-joint rms error in the joint's unit (n,));
+    ``passive``: names of the joints whose effort is negligible.
     """
 
     name: str
     t_rows: np.ndarray
-    A: np.ndarray
     y: np.ndarray
+    preds: dict[str, np.ndarray]
     scores: dict[str, tuple[float, np.ndarray]]
     passive: tuple[str, ...] = ()
 
 
 def validation_report(
-    runs: list[ValidationRun],
-    thetas: dict[str, np.ndarray],
-    joint_names,
-    effort_units,
-    command: str = "",
+    runs: list[ValidationRun], joint_names, effort_units, command: str = "", notes=(),
     title: str | None = None,
-) -> str:
+) -> str:  # fmt: skip
     """The validation page (sections :data:`VALIDATION_SECTIONS`) as an HTML string."""
-    labels = list(thetas)
+    labels = list(runs[0].preds)
     mean = {k: float(np.mean([r.scores[k][0] for r in runs])) for k in labels}
     best = min(labels, key=lambda k: mean[k])
     sentence = "Held-out stacked relative rms error, mean over runs: " + ", ".join(
         f"{k} {_fmt(100 * mean[k], 3)} %" for k in labels
     )
     verdict_html = f"<div class='verdict ok'>{_esc(sentence)}; lowest: {_esc(best)}.</div>"
+    if notes:
+        verdict_html += "<ul>" + "".join(f"<li>{_esc(x)}</li>" for x in notes) + "</ul>"
     head = "<tr><th>run</th>" + "".join(f"<th>{_esc(k)}</th>" for k in labels) + "</tr>"
     rows = [head]
     for r in runs:
@@ -444,15 +444,14 @@ def validation_report(
         passive = f"<br><span class='z'>passive: {', '.join(r.passive)}</span>" if r.passive else ""
         rows.append(f"<tr><td>{_esc(r.name)}{passive}</td>{''.join(cells)}</tr>")
     caption = (
-        "Headline: rms(effort - A theta) / rms(effort) over all joints' rows stacked, every "
-        "parameter set under the same conditioning; per joint: rms error in the joint's unit."
+        "Headline: rms(effort - predicted effort) / rms(effort) over all joints' rows "
+        "stacked, every parameter set under the same conditioning; per joint: rms error in "
+        "the joint's unit."
     )
-    scores = (
-        f"<div class='wide'><table>{''.join(rows)}</table></div><p class='caption'>{caption}</p>"
-    )
+    scores = _wide_table(rows) + f"<p class='caption'>{caption}</p>"
     figs, specs = [], []
     for r in runs:
-        pred = np.einsum("mjb,b->mj", r.A, thetas[best])
+        pred = r.preds[best]
         figs.append(
             effort_figure(
                 r.t_rows, r.y, pred, joint_names, effort_units, f"{r.name}: {best} prediction"
