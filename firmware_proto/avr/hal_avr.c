@@ -75,6 +75,9 @@ static volatile int32_t tick_counts[2];
 static volatile uint16_t tick_sum[N_ADC];
 static volatile uint8_t tick_n[N_ADC];
 
+static const int32_t current_fs_ma[2] = BOARD_CURRENT_FS_MA;
+static const int32_t voltage_fs_mv[2] = BOARD_VOLTAGE_FS_MV;
+
 /* main-loop copy for gf_tick */
 static int32_t snap_counts[2];
 static int32_t snap_mv[2], snap_ma[2];
@@ -228,8 +231,8 @@ uint8_t board_take_tick(void)
     }
     SREG = sreg;
     for (j = 0; j < 2u; ++j) {
-        snap_ma[j] = adc_mean(sum[j], n[j], BOARD_CURRENT_FS_MA);
-        snap_mv[j] = adc_mean(sum[2u + j], n[2u + j], BOARD_VOLTAGE_FS_MV);
+        snap_ma[j] = adc_mean(sum[j], n[j], current_fs_ma[j]);
+        snap_mv[j] = adc_mean(sum[2u + j], n[2u + j], voltage_fs_mv[j]);
     }
     return 1u;
 }
@@ -271,8 +274,8 @@ void board_init(void)
     UCSR0C = (uint8_t)((1u << UCSZ01) | (1u << UCSZ00));
     UCSR0B = (uint8_t)((1u << RXEN0) | (1u << TXEN0) | (1u << RXCIE0));
     /* motors: DIR outputs low, PWM 0, Timer0 phase-correct 8-bit, no prescaler */
-    DDRB |= (uint8_t)((1u << DIR0_BIT) | (1u << DIR1_BIT));
-    PORTB &= (uint8_t)~((1u << DIR0_BIT) | (1u << DIR1_BIT));
+    DDRB |= (uint8_t)((1u << DIR0_BIT) | (1u << DIR1_BIT) | (1u << BOARD_TICK_BUSY_BIT));
+    PORTB &= (uint8_t)~((1u << DIR0_BIT) | (1u << DIR1_BIT) | (1u << BOARD_TICK_BUSY_BIT));
     OCR0A = 0u;
     OCR0B = 0u;
     TCCR0A = (uint8_t)((1u << COM0A1) | (1u << COM0B1) | (1u << WGM00));
