@@ -21,6 +21,7 @@
 #ifndef GUARD_AVR_BOARD_H
 #define GUARD_AVR_BOARD_H
 
+#include <avr/io.h>
 #include <stdint.h>
 
 #include "guard_fw.h"
@@ -39,6 +40,20 @@
    (robot YAML current_sensor.range, voltage_sensor.range). */
 #define BOARD_CURRENT_FS_MA ROBOT_CURRENT_FS_MA
 #define BOARD_VOLTAGE_FS_MV ROBOT_VOLTAGE_FS_MV
+
+/* ADC channel of each joint's current and motor-voltage sense (the table above). */
+#ifndef BOARD_ADC_CH_CURRENT0
+#define BOARD_ADC_CH_CURRENT0 0u
+#endif
+#ifndef BOARD_ADC_CH_CURRENT1
+#define BOARD_ADC_CH_CURRENT1 1u
+#endif
+#ifndef BOARD_ADC_CH_VOLTAGE0
+#define BOARD_ADC_CH_VOLTAGE0 2u
+#endif
+#ifndef BOARD_ADC_CH_VOLTAGE1
+#define BOARD_ADC_CH_VOLTAGE1 3u
+#endif
 
 /* Encoder sign per joint (+1 or -1) to match the motor's positive direction. */
 #ifndef BOARD_ENC0_SIGN

@@ -77,6 +77,8 @@ static volatile uint8_t tick_n[N_ADC];
 
 static const int32_t current_fs_ma[2] = BOARD_CURRENT_FS_MA;
 static const int32_t voltage_fs_mv[2] = BOARD_VOLTAGE_FS_MV;
+static const uint8_t ch_current[2] = {BOARD_ADC_CH_CURRENT0, BOARD_ADC_CH_CURRENT1};
+static const uint8_t ch_voltage[2] = {BOARD_ADC_CH_VOLTAGE0, BOARD_ADC_CH_VOLTAGE1};
 
 /* main-loop copy for gf_tick */
 static int32_t snap_counts[2];
@@ -231,8 +233,8 @@ uint8_t board_take_tick(void)
     }
     SREG = sreg;
     for (j = 0; j < 2u; ++j) {
-        snap_ma[j] = adc_mean(sum[j], n[j], current_fs_ma[j]);
-        snap_mv[j] = adc_mean(sum[2u + j], n[2u + j], voltage_fs_mv[j]);
+        snap_ma[j] = adc_mean(sum[ch_current[j]], n[ch_current[j]], current_fs_ma[j]);
+        snap_mv[j] = adc_mean(sum[ch_voltage[j]], n[ch_voltage[j]], voltage_fs_mv[j]);
     }
     return 1u;
 }

@@ -37,6 +37,7 @@
 #define AS_TX 16384u
 #define AS_VECTORS 64
 #define AS_SUBSTEPS 64 /* Hermite path sampled this many times per period */
+#define AS_PWM_PERIOD 510u /* Timer0 phase-correct 8-bit, no prescaler: 31.4 kHz */
 
 enum { VS_COUNT, VS_CYCLES, VS_MAX_CYCLES, VS_MAX_LATENCY, VS_N };
 
@@ -81,7 +82,9 @@ typedef struct {
     uint8_t estop_bit, busy_bit;  /* PORTB */
     uint8_t adc_i[AS_JOINTS], adc_v[AS_JOINTS];
     uint8_t vec_timer1, vec_pcint_enc;
-    uint16_t reg_portb, reg_ocr0a, reg_ocr0b;
+    uint8_t own_pcint; /* simavr's model lacks the encoders' pin-change interrupt: add it */
+    uint16_t reg_portb, reg_ocr0a, reg_ocr0b, reg_tccr0a;
+    uint16_t pwm_ddr[AS_JOINTS]; /* data address of the PWM pin's DDR */
 } as_pins_t;
 
 typedef struct {
@@ -127,6 +130,7 @@ typedef struct {
     uint8_t pending[AS_VECTORS], running[AS_VECTORS];
     int32_t out[2 * AS_JOINTS];
     int vec_arg[AS_VECTORS];
+    avr_int_vector_t pcint_enc; /* own_pcint */
 } as_t;
 
 size_t as_size(void) { return sizeof(as_t); }
@@ -176,8 +180,13 @@ static void set_enc_pins(as_t *s, int j, int32_t count)
         e.value = value;
         avr_ioctl(s->avr, AVR_IOCTL_IOPORT_SET_EXTERNAL(s->pins.enc_port[j]), &e);
     }
-    avr_raise_irq(s->enc_irq[j][0], (v >> 1) & 1u);
-    avr_raise_irq(s->enc_irq[j][1], v & 1u);
+    {
+        uint8_t before = s->avr->data[0x106u]; /* PINK (ATmega2560) */
+        avr_raise_irq(s->enc_irq[j][0], (v >> 1) & 1u);
+        avr_raise_irq(s->enc_irq[j][1], v & 1u);
+        if (s->pins.own_pcint && ((before ^ s->avr->data[0x106u]) & s->avr->data[0x6Du]))
+            avr_raise_interrupt(s->avr, &s->pcint_enc);
+    }
 }
 
 static void tx_sample(as_t *s)
@@ -279,29 +288,6 @@ static void on_xoff(struct avr_irq_t *irq, uint32_t value, void *param)
     ((as_t *)param)->xoff = 1;
 }
 
-static void on_pwm_pin(as_t *s, int j, uint32_t value)
-{
-    if (value && !s->pwm_level[j]) {
-        s->st[ST_PWM_RISE0 + j]++;
-        s->st[ST_PWM_LAST_HIGH0 + j] = (int64_t)s->avr->cycle;
-    }
-    if (!value && s->pwm_level[j])
-        s->st[ST_PWM_LAST_HIGH0 + j] = (int64_t)s->avr->cycle;
-    s->pwm_level[j] = value != 0u;
-}
-
-static void on_pwm0(struct avr_irq_t *irq, uint32_t value, void *param)
-{
-    (void)irq;
-    on_pwm_pin((as_t *)param, 0, value);
-}
-
-static void on_pwm1(struct avr_irq_t *irq, uint32_t value, void *param)
-{
-    (void)irq;
-    on_pwm_pin((as_t *)param, 1, value);
-}
-
 /* A conversion starts: put the front end's output for its channel on the pin. */
 static void on_adc_trigger(struct avr_irq_t *irq, uint32_t value, void *param)
 {
@@ -336,6 +322,30 @@ static void on_adc_trigger(struct avr_irq_t *irq, uint32_t value, void *param)
 }
 
 /* ------------------------------------------------------------------ cycle timers */
+/* The PWM outputs once per PWM period: simavr 1.6 does not drive the OC0A/OC0B pins in
+   phase-correct mode, so the pin's duty is formed as the hardware does: compare output
+   connected (COM0x1), pin an output (DDR) and OCR0x > 0 -> the pin is high for OCR0x/255 of
+   the period. Records the last cycle each PWM pin was high and its off -> on switches. */
+static avr_cycle_count_t pwm_timer(struct avr_t *avr, avr_cycle_count_t when, void *param)
+{
+    as_t *s = (as_t *)param;
+    const uint8_t *d = avr->data;
+    static const uint8_t com[AS_JOINTS] = {0x80u, 0x20u};
+    int j;
+    for (j = 0; j < AS_JOINTS; ++j) {
+        uint8_t ocr = d[j == 0 ? s->pins.reg_ocr0a : s->pins.reg_ocr0b];
+        int on = ocr > 0u && (d[s->pins.reg_tccr0a] & com[j]) &&
+                 (d[s->pins.pwm_ddr[j]] & (1u << s->pins.pwm_bit[j]));
+        if (on) {
+            if (!s->pwm_level[j])
+                s->st[ST_PWM_RISE0 + j]++;
+            s->st[ST_PWM_LAST_HIGH0 + j] = (int64_t)when;
+        }
+        s->pwm_level[j] = on;
+    }
+    return when + AS_PWM_PERIOD;
+}
+
 static avr_cycle_count_t edge_timer(struct avr_t *avr, avr_cycle_count_t when, void *param)
 {
     as_t *s = (as_t *)param;
@@ -388,6 +398,7 @@ static int pin_map(as_pins_t *p, int mcu)
     p->reg_portb = 0x25u;
     p->reg_ocr0a = 0x47u;
     p->reg_ocr0b = 0x48u;
+    p->reg_tccr0a = 0x44u;
     if (mcu == 0) { /* ATmega328P (board.h) */
         p->enc_port[0] = p->enc_port[1] = 'D';
         p->enc_a[0] = 2u;
@@ -397,6 +408,7 @@ static int pin_map(as_pins_t *p, int mcu)
         p->pwm_port[0] = p->pwm_port[1] = 'D';
         p->pwm_bit[0] = 6u;
         p->pwm_bit[1] = 5u;
+        p->pwm_ddr[0] = p->pwm_ddr[1] = 0x2Au; /* DDRD */
         p->estop_bit = 2u;
         p->busy_bit = 3u;
         p->vec_timer1 = 11u;
@@ -413,10 +425,13 @@ static int pin_map(as_pins_t *p, int mcu)
         p->pwm_bit[0] = 7u;
         p->pwm_port[1] = 'G';
         p->pwm_bit[1] = 5u;
+        p->pwm_ddr[0] = 0x24u; /* DDRB */
+        p->pwm_ddr[1] = 0x33u; /* DDRG */
         p->estop_bit = 4u;
         p->busy_bit = 6u;
         p->vec_timer1 = 17u;
         p->vec_pcint_enc = 11u;
+        p->own_pcint = 1u; /* PCINT16..23 on port K: PCICR 0x68 / PCIFR 0x3B bit 2, PCMSK2 0x6D */
         return 0;
     }
     return -1;
@@ -470,6 +485,13 @@ int as_init(as_t *s, const char *elf, int mcu, const double *cfg, size_t n)
         s->sigma_mv[j] = v[4];
         s->count0[j] = (int32_t)v[5];
     }
+    if (s->pins.own_pcint) {
+        avr_regbit_t en = AVR_IO_REGBIT(0x68, 2), fl = AVR_IO_REGBIT(0x3B, 2);
+        s->pcint_enc.vector = s->pins.vec_pcint_enc;
+        s->pcint_enc.enable = en;
+        s->pcint_enc.raised = fl;
+        avr_register_vector(s->avr, &s->pcint_enc);
+    }
     /* interrupts: entry / exit of every vector */
     for (i = 0; i < s->avr->interrupts.vector_count; ++i) {
         avr_int_vector_t *vec = s->avr->interrupts.vector[i];
@@ -488,12 +510,7 @@ int as_init(as_t *s, const char *elf, int mcu, const double *cfg, size_t n)
             avr_io_getirq(s->avr, AVR_IOCTL_IOPORT_GETIRQ(s->pins.enc_port[j]), s->pins.enc_b[j]);
         set_enc_pins(s, j, s->count0[j]);
     }
-    avr_irq_register_notify(
-        avr_io_getirq(s->avr, AVR_IOCTL_IOPORT_GETIRQ(s->pins.pwm_port[0]), s->pins.pwm_bit[0]),
-        on_pwm0, s);
-    avr_irq_register_notify(
-        avr_io_getirq(s->avr, AVR_IOCTL_IOPORT_GETIRQ(s->pins.pwm_port[1]), s->pins.pwm_bit[1]),
-        on_pwm1, s);
+    avr_cycle_timer_register(s->avr, AS_PWM_PERIOD, pwm_timer, s);
     avr_irq_register_notify(avr_io_getirq(s->avr, AVR_IOCTL_IOPORT_GETIRQ('B'), s->pins.busy_bit),
                             on_busy, s);
     s->estop_irq = avr_io_getirq(s->avr, AVR_IOCTL_IOPORT_GETIRQ('B'), s->pins.estop_bit);

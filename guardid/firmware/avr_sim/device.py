@@ -30,7 +30,7 @@ AVCC_MV = 5000
 BAUD = F_CPU / (8 * 17)  #: 115200 requested, U2X with UBRR 16: 117647 bit/s (board_init)
 ADC_CONVERSION_CYCLES = 13 * 128  #: prescaler 128, 13 ADC clocks
 ADC_CHANNELS = 4
-OUTPUT_LATENCY_S = 0.002  #: plant period starts this long after the tick interrupt
+OUTPUT_LATENCY_S = 0.003  #: plant period starts this long after the tick interrupt
 BOOT_LIMIT_S = 1.0
 STAT_NAMES = (
     "cycle", "ticks", "work_n", "work_max", "work_sum", "late_outputs", "tx_hwm",
@@ -115,7 +115,10 @@ class AvrFirmware:
             ims, vms = joint.current_sensor, joint.voltage_sensor
             self.supply_mv.append(joint.drive.supply_voltage * 1e3)
             cfg += [joint.drive.supply_voltage * 1e3, ims.range * 1e3, vms.range * 1e3]
-            cfg += [ims.noise * 1e3 * math.sqrt(per_channel), vms.noise * 1e3 * math.sqrt(per_channel)]
+            cfg += [
+                ims.noise * 1e3 * math.sqrt(per_channel),
+                vms.noise * 1e3 * math.sqrt(per_channel),
+            ]
             cfg += [math.floor(q * cpr)]
         words = self.lib.as_size() // 8 + 1
         self._mem = (ctypes.c_int64 * words)()
@@ -127,7 +130,7 @@ class AvrFirmware:
         self._open = True
         self._buf = ctypes.create_string_buffer(16384)
         self._check(self.lib.as_boot(self._h, BOOT_LIMIT_S * F_CPU), "booting")
-        self.boot_output = self._take()  # INFO at reset: sent before any host listened
+        self._out = bytearray(self._take())  # INFO at reset: the host's first bytes
         self._x = [q * c for q, c in zip(q0, self.counts_per_rad, strict=True)]
         self._v = [v * c for v, c in zip(qd0, self.counts_per_rad, strict=True)]
         self._plant_in = (ctypes.c_double * 12)()
@@ -150,14 +153,16 @@ class AvrFirmware:
         p = self._plant_in
         for j, cpr in enumerate(self.counts_per_rad):
             x1, v1 = sample.q[j] * cpr, sample.qd[j] * cpr
-            p[6 * j : 6 * j + 6] = [self._x[j], self._v[j], x1, v1,
-                                    sample.current_true[j] * 1e3, sample.voltage_true[j] * 1e3]  # fmt: skip
+            ma, mv = sample.current_true[j] * 1e3, sample.voltage_true[j] * 1e3
+            p[6 * j : 6 * j + 6] = [self._x[j], self._v[j], x1, v1, ma, mv]
             self._x[j], self._v[j] = x1, v1
         self._check(self.lib.as_run_tick(self._h, p), f"tick {self.plant.tick}")
 
     def take_output(self) -> bytes:
-        """Bytes the MCU transmitted since the previous call."""
-        return self._take()
+        """Bytes the MCU transmitted since the previous call (first: its INFO at reset)."""
+        out = bytes(self._out) + self._take()
+        self._out.clear()
+        return out
 
     def wants_time(self) -> bool:
         """A microcontroller's time always runs (watchdog, ADC, timers)."""
@@ -190,10 +195,11 @@ class AvrFirmware:
         vs = (ctypes.c_int64 * 256)()
         self.lib.as_stats(self._h, st, vs)
         out = dict(zip(STAT_NAMES, st, strict=True))
+        keys = ("count", "cycles", "max_cycles", "max_latency")
         out["vectors"] = {
-            name: dict(zip(("count", "cycles", "max_cycles", "max_latency"), vs[4 * v : 4 * v + 4], strict=True))
+            name: dict(zip(keys, vs[4 * v : 4 * v + 4], strict=True))
             for name, v in VECTORS[self.mcu].items()
-        }  # fmt: skip
+        }
         return out
 
     def read_ram(self, name: str, size: int) -> bytes:
