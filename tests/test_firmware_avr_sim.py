@@ -246,7 +246,7 @@ def test_same_seed_same_bytes_and_the_atmega2560_runs():
 
 @NEEDS_AVR
 def test_capture_through_the_avr_binary_tracks_like_the_emulator(tmp_path):
-    """8 s of the tracking excitation: every row, no loss, rms within 10 % of firmware=py."""
+    """5 s of the tracking excitation: every row, no loss, rms within 10 % of firmware=py."""
     from click.testing import CliRunner
 
     from guardid.cli import main as cli
@@ -258,7 +258,7 @@ def test_capture_through_the_avr_binary_tracks_like_the_emulator(tmp_path):
     rms = {}
     for fw in ("py", "avr"):
         log = tmp_path / f"{fw}.csv"
-        res = runner.invoke(cli, ["capture", "--trajectory", str(traj), "--duration", "8",
+        res = runner.invoke(cli, ["capture", "--trajectory", str(traj), "--duration", "5",
                                   "--port", f"sim://guard?seed=4&firmware={fw}", "--quiet",
                                   "-o", str(log)])  # fmt: skip
         assert res.exit_code == 0, res.output
@@ -268,7 +268,7 @@ def test_capture_through_the_avr_binary_tracks_like_the_emulator(tmp_path):
         run = load_run(log)
         # the host's 3-tick lead (guardid/link Session.track) is shorter than the first
         # setpoints' time on a real 115200-baud line: the AVR may miss the first row only
-        assert round(8 / 0.015) - 1 <= len(run.t) <= round(8 / 0.015)
+        assert round(5 / 0.015) - 1 <= len(run.t) <= round(5 / 0.015)
         assert np.all(np.diff(run.ticks) == 1)
         rms[fw] = _tracking_rms(log)
     assert np.all(np.abs(rms["avr"] - rms["py"]) <= 0.10 * rms["py"]), rms
