@@ -78,6 +78,8 @@
     } while (0)
 
 void board_init(void);
+/* Start the tick (Timer1): after gf_init, whose gain arithmetic takes longer than a tick. */
+void board_start_tick(void);
 extern const gf_hal_t board_hal;
 /* 1 once per elapsed tick (latches the encoder counts and the ADC means of the period). */
 uint8_t board_take_tick(void);

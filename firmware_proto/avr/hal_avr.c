@@ -162,12 +162,15 @@ static int32_t round_div(int32_t num, int32_t den) /* den > 0, half away from ze
     return num >= 0 ? (num + den / 2) / den : -((-num + den / 2) / den);
 }
 
-/* Period mean of n conversions summing to sum, centred at 512 codes, 512 codes = fs. */
+/* Period mean of n conversions summing to sum, centred at 512 codes, 512 codes = fs.
+   The ADC truncates (code c covers c .. c + 1 LSB of input): over noisy conversions the
+   mean code is half an LSB below the input, so half a code per conversion is added back
+   (2 sum + n - 1024 n: |.| <= 1024 n <= 2^17 for n <= 128, times fs <= 16000 fits int32). */
 static int32_t adc_mean(uint16_t sum, uint8_t n, int32_t fs)
 {
     if (n == 0u)
         return 0;
-    return round_div(((int32_t)sum - 512L * n) * fs, 512L * n);
+    return round_div((2L * (int32_t)sum + (int32_t)n - 1024L * n) * fs, 1024L * n);
 }
 
 static int32_t hal_read_counts(void *ctx, uint8_t joint)
@@ -300,8 +303,13 @@ void board_init(void)
     ADMUX = (uint8_t)(1u << REFS0);
     ADCSRA = (uint8_t)((1u << ADEN) | (1u << ADIE) | (1u << ADPS2) | (1u << ADPS1) |
                        (1u << ADPS0) | (1u << ADSC));
+}
+
+void board_start_tick(void)
+{
     /* tick: Timer1 CTC, prescaler 8 -> 2 MHz, 15 ms = 30000 counts */
     TCCR1A = 0u;
+    TCNT1 = 0u;
     OCR1A = (uint16_t)(F_CPU / 8UL / 1000UL * BOARD_TICK_US / 1000UL - 1UL);
     TCCR1B = (uint8_t)((1u << WGM12) | (1u << CS11));
     TIMSK1 = (uint8_t)(1u << OCIE1A);

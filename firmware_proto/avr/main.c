@@ -39,6 +39,7 @@ int main(void)
             /* bad configuration: motors stay off (board_init set PWM 0) */
         }
     }
+    board_start_tick(); /* now: gf_init's 128-bit gain arithmetic takes over 15 ms */
     wdt_enable(WDTO_120MS); /* a hung main loop resets the MCU: motors off, INFO sent */
     for (;;) {
         wdt_reset();

@@ -63,6 +63,9 @@ enum {
     ST_PWM_LAST_HIGH0, /* last cycle the PWM pin was seen high (rise or still high) */
     ST_PWM_LAST_HIGH1,
     ST_ESTOP_CYCLE,   /* cycle the e-stop pin was pulled low (0: never) */
+    ST_WORK_MAX_TICK, /* Timer1 compare match (1 = first) of the worst tick work */
+    ST_LATE_TICKS,    /* compare matches raised before the previous tick's work ended */
+    ST_LATE_FIRST,    /* the first such compare match (0: none) */
     ST_N
 };
 
@@ -97,6 +100,7 @@ typedef struct {
     uint64_t t1;        /* last Timer1 compare match */
     uint64_t t1_prev;
     int busy;           /* tick-busy pin level */
+    int64_t work_n_at_t1; /* tick works completed at the last Timer1 compare match */
     /* plant -> analog */
     double fs_ma[AS_JOINTS], fs_mv[AS_JOINTS];
     double sigma_ma[AS_JOINTS], sigma_mv[AS_JOINTS]; /* per conversion */
@@ -216,7 +220,13 @@ static void on_pending(struct avr_irq_t *irq, uint32_t value, void *param)
     s->pend_since[v] = s->avr->cycle;
     s->pending[v] = 1u;
     if (v == s->pins.vec_timer1) {
+        if (s->st[ST_TICKS] > 0 && (s->busy || s->st[ST_WORK_N] == s->work_n_at_t1)) {
+            s->st[ST_LATE_TICKS]++;
+            if (!s->st[ST_LATE_FIRST])
+                s->st[ST_LATE_FIRST] = s->st[ST_TICKS] + 1;
+        }
         s->st[ST_TICKS]++;
+        s->work_n_at_t1 = s->st[ST_WORK_N];
         s->t1_prev = s->t1;
         s->t1 = s->avr->cycle;
     }
@@ -256,8 +266,10 @@ static void on_busy(struct avr_irq_t *irq, uint32_t value, void *param)
         s->busy = 0;
         s->st[ST_WORK_N]++;
         s->st[ST_WORK_SUM] += (int64_t)work;
-        if ((int64_t)work > s->st[ST_WORK_MAX])
+        if ((int64_t)work > s->st[ST_WORK_MAX]) {
             s->st[ST_WORK_MAX] = (int64_t)work;
+            s->st[ST_WORK_MAX_TICK] = s->st[ST_TICKS];
+        }
         tx_sample(s);
     }
 }

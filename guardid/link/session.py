@@ -191,14 +191,17 @@ class Session:
                 )
         return self.telemetry.popleft()
 
-    def track(self, setpoints_counts: np.ndarray, depth: int = 8, lead_ticks: int = 3) -> Iterator:
+    def track(self, setpoints_counts: np.ndarray, depth: int = 8, lead_ticks: int = 6) -> Iterator:
         """Run a closed-loop trajectory: one row of joint setpoints [counts] per tick.
 
         Switches to position mode, streams setpoints ahead of their tick (at most
         ``depth`` buffered), starts telemetry, and yields ``(index, Telemetry)`` for every
         frame received, ``index`` being the trajectory row of the frame's tick (negative
         before the trajectory starts). Ends after the last row's tick; the caller puts the
-        robot idle (see :meth:`finish`).
+        robot idle (see :meth:`finish`). ``lead_ticks``: the first row's tick after the
+        PING's: the PONG's way back, ``depth`` setpoints and START_STREAM (~200 bytes, 17 ms
+        at 115200 baud) must reach the robot before it; the AVR binary in the loop
+        (firmware=avr) needs 4 ticks, 3 lost the first row.
         """
         rows = np.asarray(setpoints_counts, dtype=np.int64)
         self.telemetry.clear()

@@ -24,19 +24,18 @@ import math
 
 from guardid.errors import GuardidError
 from guardid.firmware.avr_sim.build import F_CPU, build_elf, build_shim, ram_symbols
+from guardid.firmware.avr_sim.robot_header import ADC_CHANNELS, ADC_CONVERSION_CYCLES
 from guardid.firmware.emulator import bind_robot
 
 AVCC_MV = 5000
 BAUD = F_CPU / (8 * 17)  #: 115200 requested, U2X with UBRR 16: 117647 bit/s (board_init)
-ADC_CONVERSION_CYCLES = 13 * 128  #: prescaler 128, 13 ADC clocks
-ADC_CHANNELS = 4
 OUTPUT_LATENCY_S = 0.003  #: plant period starts this long after the tick interrupt
 BOOT_LIMIT_S = 1.0
 STAT_NAMES = (
     "cycle", "ticks", "work_n", "work_max", "work_sum", "late_outputs", "tx_hwm",
     "edges0", "edges1", "count_err_max", "count_err_ticks", "tx_bytes", "rx_bytes",
     "tx_overflow", "edge_overflow", "pwm_rise0", "pwm_rise1", "pwm_last_high0",
-    "pwm_last_high1", "estop_cycle",
+    "pwm_last_high1", "estop_cycle", "work_max_tick", "late_ticks", "late_first",
 )  # fmt: skip
 VECTORS = {  #: interrupt vector numbers of the port's ISRs per MCU
     "atmega328p": {"PCINT0 (e-stop)": 3, "PCINT2 (encoders)": 5, "TIMER1_COMPA (tick)": 11,

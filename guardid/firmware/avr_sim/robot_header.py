@@ -19,6 +19,9 @@ HEADER = AVR_DIR / "robot_config.h"
 AVR_JOINTS = 2  #: the pin map of board.h wires two joints
 ADC_BITS = 10  #: the AVR's ADC
 INT32 = 2**31
+ADC_CONVERSION_CYCLES = 13 * 128  #: 16 MHz, prescaler 128: one conversion
+ADC_CHANNELS = 4
+F_CPU = 16_000_000
 
 
 class RobotHeaderError(ValueError):
@@ -54,6 +57,10 @@ def _check(description) -> None:
             sensor = getattr(joint, key)
             if sensor is None or sensor.adc_bits != ADC_BITS:
                 raise RobotHeaderError(f"{where}.{key}: the AVR port needs a {ADC_BITS}-bit ADC")
+            # hal_avr.c adc_mean: (2 sum + n - 1024 n) * full scale [mA|mV] in int32
+            n = description.sample_period * F_CPU // (ADC_CONVERSION_CYCLES * ADC_CHANNELS) + 1
+            if 1023 * n * mv_from_volts(sensor.range) >= INT32:
+                raise RobotHeaderError(f"{where}.{key}.range: too large for the port's int32 mean")
 
 
 def render(description, source: str) -> str:
