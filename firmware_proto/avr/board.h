@@ -87,6 +87,9 @@ uint8_t board_take_tick(void);
 uint8_t board_take_estop(void);
 /* 1 and *b set when a received byte is waiting. */
 uint8_t board_uart_getc(uint8_t *b);
+/* 1 if a tick, the e-stop or a received byte waits for the main loop (call with
+   interrupts off before sleeping). */
+uint8_t board_work_pending(void);
 /* Ticks the main loop was too late to process (diagnostics). */
 uint16_t board_tick_overruns(void);
 

@@ -242,6 +242,11 @@ uint8_t board_take_tick(void)
     return 1u;
 }
 
+uint8_t board_work_pending(void)
+{
+    return (uint8_t)(tick_pending || estop_fired || rx_head != rx_tail);
+}
+
 uint8_t board_take_estop(void)
 {
     uint8_t fired = estop_fired;

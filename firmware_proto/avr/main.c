@@ -6,6 +6,7 @@
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <avr/pgmspace.h>
+#include <avr/sleep.h>
 #include <avr/wdt.h>
 
 #include "board.h"
@@ -40,6 +41,7 @@ int main(void)
         }
     }
     board_start_tick(); /* now: gf_init's 128-bit gain arithmetic takes over 15 ms */
+    set_sleep_mode(SLEEP_MODE_IDLE); /* timers, ADC and UART keep running */
     wdt_enable(WDTO_120MS); /* a hung main loop resets the MCU: motors off, INFO sent */
     for (;;) {
         wdt_reset();
@@ -52,5 +54,13 @@ int main(void)
         }
         for (n = 0; n < RX_BYTES_PER_LOOP && board_uart_getc(&b); ++n)
             gf_receive_byte(&fw, b);
+        cli(); /* nothing to do: idle until an interrupt (ADC every 104 us at the latest) */
+        if (!board_work_pending()) {
+            sleep_enable();
+            sei(); /* the instruction after sei runs before any interrupt: no lost wake-up */
+            sleep_cpu();
+            sleep_disable();
+        }
+        sei();
     }
 }

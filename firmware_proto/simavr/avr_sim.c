@@ -24,6 +24,7 @@
 #include <string.h>
 
 #include <simavr/avr_adc.h>
+#include <simavr/avr_extint.h>
 #include <simavr/avr_ioport.h>
 #include <simavr/avr_uart.h>
 #include <simavr/sim_avr.h>
@@ -390,6 +391,22 @@ static avr_cycle_count_t rx_timer(struct avr_t *avr, avr_cycle_count_t when, voi
 static void drive_estop(as_t *s, int pressed);
 
 /* ------------------------------------------------------------------ set-up */
+/* The MCU sleeps (idle main loop): jump to the next event at once. simavr's default
+   sleep callback waits out the sleep in wall-clock time. */
+static void no_wait(struct avr_t *avr, avr_cycle_count_t how_long)
+{
+    (void)avr;
+    (void)how_long;
+}
+
+static avr_cycle_count_t stop_timer(struct avr_t *avr, avr_cycle_count_t when, void *param)
+{
+    (void)avr;
+    (void)when;
+    (void)param;
+    return 0u;
+}
+
 static void quiet_logger(struct avr_t *avr, const int level, const char *format, va_list ap)
 {
     (void)avr;
@@ -476,6 +493,12 @@ int as_init(as_t *s, const char *elf, int mcu, const double *cfg, size_t n)
         return -2;
     avr_init(s->avr);
     s->avr->log = LOG_NONE;
+    s->avr->sleep = no_wait;
+    /* INT0/INT1 (PD2/PD3: encoder 0 on the ATmega328P) are not used by the firmware
+       (EIMSK = 0), but simavr polls a low level on them every cycle for "strict" level
+       triggering: off, or the simulation steps two cycles at a time while the MCU sleeps. */
+    avr_extint_set_strict_lvl_trig(s->avr, 0, 0);
+    avr_extint_set_strict_lvl_trig(s->avr, 1, 0);
     s->fw.frequency = (uint32_t)cfg[0];
     avr_load_firmware(s->avr, &s->fw);
     s->avr->frequency = (uint32_t)cfg[0];
@@ -572,6 +595,8 @@ static void sample_outputs(as_t *s)
 /* Run to `target` cycles; 0, or -1 if the core stopped or crashed. */
 static int run_to(as_t *s, uint64_t target)
 {
+    if (target > s->avr->cycle) /* a sleeping MCU wakes there, not past it */
+        avr_cycle_timer_register(s->avr, target - s->avr->cycle, stop_timer, s);
     while (s->avr->cycle < target) {
         int state = avr_run(s->avr);
         if (state == cpu_Done || state == cpu_Crashed)
