@@ -339,6 +339,47 @@ def _tracking_rms(log) -> np.ndarray:
     return np.sqrt(np.mean((sp - q) ** 2, axis=0))
 
 
+@NEEDS_AVR
+def test_fake_port_cli_serves_the_avr_binary_on_a_pty():
+    """guardid fake-port --firmware avr --mcu atmega2560: a host on the pty talks to the AVR
+    port's binary (its INFO says "GUC1", the AVR port's firmware id) and drives a joint."""
+    import serial
+
+    from guardid.link import Session
+
+    env = dict(os.environ)
+    env.pop("GUARDID_FAKEPORT_DEVICE", None)
+    cmd = [sys.executable, "-m", "guardid", "fake-port", "--seed", "2", "--firmware", "avr",
+           "--mcu", "atmega2560"]  # fmt: skip
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=env)  # fmt: skip
+    try:
+        path = proc.stdout.readline().strip()
+        assert path.startswith("/dev/"), proc.stderr.read()
+        port = serial.Serial(path, 115200, timeout=5.0)
+        try:
+            session = Session(port, timeout_s=5.0)
+            info = session.handshake()
+            session.set_mode("voltage")
+            session.start_stream()
+            rows = []
+            for _ in range(12):
+                session.send_voltage([6.0, 0.0])
+                rows.append(session.next_telemetry())
+            session.finish()
+        finally:
+            port.close()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=20)
+    assert info["firmware_id"] == 0x47554331  # "GUC1": firmware_proto/avr/main.c
+    assert info["counts_per_rev"] == (24000, 48000)
+    # 6 V: PWM duty round(6000 * 255 / 12000) = 128 -> 128/255 x 12 V = 6.024 V (ADC noise
+    # 10 mV); the pan turns forwards
+    assert abs(rows[-1].voltage_mv[0] - 6024) < 60
+    assert rows[-1].counts[0] > rows[0].counts[0]
+
+
 def test_mcu_option_only_with_the_avr_firmware():
     from guardid.fakeport.options import SimUrlError, parse_sim_url
 
