@@ -8,6 +8,7 @@ Run: python bench/bench_avr_budget.py [--seconds 60] [--mcu atmega328p] [--seed 
    relative std under 5 % checked against the truth (within 3 std).
 2. Full speed: voltage mode, pan at +12 V, tilt bang-bang +-12 V between its limits, telemetry
    every tick.
+3. SET_PID landing at every phase of the tick (its gain arithmetic runs in the main loop).
 For each: worst and mean cycles from the Timer1 interrupt to the end of the tick's work
 against 240 000 cycles per tick, CPU share per interrupt, worst interrupt latency, the UART
 transmit ring's high-water mark, encoder edges put on the pins vs counted, main-loop overruns,
@@ -35,7 +36,9 @@ def report(dev, label: str, cpu_s: float, wall_s: float, sim_s: float) -> None:
     print(f"--- {label} ({dev.mcu}, {sim_s:.0f} s simulated)")
     print(f"tick work: worst {st['work_max']} cycles ({100 * st['work_max'] / BUDGET:.1f} % of "
           f"{BUDGET}), mean {work_mean:.0f} ({100 * work_mean / BUDGET:.1f} %), "
-          f"{st['work_n']} ticks; outputs late for the plant: {st['late_outputs']}")  # fmt: skip
+          f"{st['work_n']} ticks; outputs late for the plant: {st['late_outputs']}; worst "
+          f"at tick {st['work_max_tick']}; ticks raised before the previous tick's work "
+          f"ended: {st['late_ticks']}")  # fmt: skip
     lat = 0
     for name, v in st["vectors"].items():
         lat = max(lat, v["max_latency"])
@@ -140,18 +143,43 @@ def full_speed(args) -> None:
     dev.close()
 
 
+def set_pid_sweep(args) -> None:
+    """SET_PID (128-bit gain arithmetic in the main loop) landing at every phase of a tick."""
+    from guardid.firmware.avr_sim.device import AvrFirmware
+    from guardid.plant import Plant
+    from guardid.protocol import MESSAGES, Encoder
+    from guardid.robot import load_robot
+
+    guard = load_robot("guard")
+    dev = AvrFirmware(guard, Plant(guard, seed=args.seed), mcu=args.mcu, seed=args.seed)
+    frame = Encoder().encode(MESSAGES["SET_PID"](0, 40_000_000, 10_000_000, 1_000_000))
+    dev.advance()
+    for fill in range(176):  # one byte time (1/176 of a tick) apart
+        dev.receive(b"\x00" * fill + frame)
+        for _ in range(3):
+            dev.advance()
+        dev.take_output()
+    st = dev.stats()
+    print(f"--- SET_PID at each of 176 phases of the tick ({dev.mcu}): worst tick work "
+          f"{st['work_max']} cycles ({100 * st['work_max'] / BUDGET:.1f} % of {BUDGET}), "
+          f"ticks late {st['late_ticks']}")  # fmt: skip
+    dev.close()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--mcu", default="atmega328p", choices=("atmega328p", "atmega2560"))
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--only", choices=("tracking", "speed"), default=None)
+    ap.add_argument("--only", choices=("tracking", "speed", "set_pid"), default=None)
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         if args.only in (None, "tracking"):
             tracking(args, Path(tmp))
         if args.only in (None, "speed"):
             full_speed(args)
+        if args.only in (None, "set_pid"):
+            set_pid_sweep(args)
 
 
 if __name__ == "__main__":
