@@ -13,29 +13,73 @@
  *   encoder 1 A / B    PD4 / PD7             PK2 (A10) / PK3 (A11)
  *   e-stop (low = stop) PB2                  PB4 (10)
  *   ADC ch 0..3        PC0..PC3              PF0..PF3 (A0..A3): I0, I1, V0, V1
+ *   tick busy (out)    PB3                   PB6 (12)   high while gf_tick runs (scope/sim)
+ *
+ * The robot's numbers (joints, tick, counts per revolution, limits, gains, sensor full
+ * scales) come from robot_config.h, generated from the robot YAML by gen_robot.py.
  */
 #ifndef GUARD_AVR_BOARD_H
 #define GUARD_AVR_BOARD_H
 
+#include <avr/io.h>
 #include <stdint.h>
 
 #include "guard_fw.h"
+#include "robot_config.h"
 
 #ifndef F_CPU
 #define F_CPU 16000000UL
 #endif
 #define BOARD_BAUD 115200UL
-#define BOARD_TICK_US 15000UL
+#define BOARD_TICK_US ROBOT_TICK_US
+#if BOARD_TICK_US < 1000UL || BOARD_TICK_US > 32000UL
+#error "board: Timer1 (prescaler 8, 16 bit) ticks 1 .. 32 ms"
+#endif
 
-/* Analog front end: full scale (code 0 or 1023 ~ -/+ full scale) at +-512 codes. */
-#define BOARD_CURRENT_FS_MA 2000L  /* +-2 A current sense */
-#define BOARD_VOLTAGE_FS_MV 15000L /* +-15 V motor-voltage sense */
+/* Analog front end per joint: full scale (code 0 or 1023 ~ -/+ full scale) at +-512 codes
+   (robot YAML current_sensor.range, voltage_sensor.range). */
+#define BOARD_CURRENT_FS_MA ROBOT_CURRENT_FS_MA
+#define BOARD_VOLTAGE_FS_MV ROBOT_VOLTAGE_FS_MV
+
+/* ADC channel of each joint's current and motor-voltage sense (the table above). */
+#ifndef BOARD_ADC_CH_CURRENT0
+#define BOARD_ADC_CH_CURRENT0 0u
+#endif
+#ifndef BOARD_ADC_CH_CURRENT1
+#define BOARD_ADC_CH_CURRENT1 1u
+#endif
+#ifndef BOARD_ADC_CH_VOLTAGE0
+#define BOARD_ADC_CH_VOLTAGE0 2u
+#endif
+#ifndef BOARD_ADC_CH_VOLTAGE1
+#define BOARD_ADC_CH_VOLTAGE1 3u
+#endif
 
 /* Encoder sign per joint (+1 or -1) to match the motor's positive direction. */
+#ifndef BOARD_ENC0_SIGN
 #define BOARD_ENC0_SIGN 1
+#endif
+#ifndef BOARD_ENC1_SIGN
 #define BOARD_ENC1_SIGN 1
+#endif
+
+/* Instrumentation output: high while the tick's work runs (1) / low (0). */
+#if defined(__AVR_ATmega2560__)
+#define BOARD_TICK_BUSY_BIT 6
+#else
+#define BOARD_TICK_BUSY_BIT 3
+#endif
+#define BOARD_TICK_BUSY(on)                                                                   \
+    do {                                                                                      \
+        if (on)                                                                               \
+            PORTB |= (uint8_t)(1u << BOARD_TICK_BUSY_BIT);                                    \
+        else                                                                                  \
+            PORTB &= (uint8_t)~(1u << BOARD_TICK_BUSY_BIT);                                   \
+    } while (0)
 
 void board_init(void);
+/* Start the tick (Timer1): after gf_init, whose gain arithmetic takes longer than a tick. */
+void board_start_tick(void);
 extern const gf_hal_t board_hal;
 /* 1 once per elapsed tick (latches the encoder counts and the ADC means of the period). */
 uint8_t board_take_tick(void);
@@ -43,6 +87,9 @@ uint8_t board_take_tick(void);
 uint8_t board_take_estop(void);
 /* 1 and *b set when a received byte is waiting. */
 uint8_t board_uart_getc(uint8_t *b);
+/* 1 if a tick, the e-stop or a received byte waits for the main loop (call with
+   interrupts off before sleeping). */
+uint8_t board_work_pending(void);
 /* Ticks the main loop was too late to process (diagnostics). */
 uint16_t board_tick_overruns(void);
 

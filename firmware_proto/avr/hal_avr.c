@@ -75,6 +75,11 @@ static volatile int32_t tick_counts[2];
 static volatile uint16_t tick_sum[N_ADC];
 static volatile uint8_t tick_n[N_ADC];
 
+static const int32_t current_fs_ma[2] = BOARD_CURRENT_FS_MA;
+static const int32_t voltage_fs_mv[2] = BOARD_VOLTAGE_FS_MV;
+static const uint8_t ch_current[2] = {BOARD_ADC_CH_CURRENT0, BOARD_ADC_CH_CURRENT1};
+static const uint8_t ch_voltage[2] = {BOARD_ADC_CH_VOLTAGE0, BOARD_ADC_CH_VOLTAGE1};
+
 /* main-loop copy for gf_tick */
 static int32_t snap_counts[2];
 static int32_t snap_mv[2], snap_ma[2];
@@ -157,12 +162,15 @@ static int32_t round_div(int32_t num, int32_t den) /* den > 0, half away from ze
     return num >= 0 ? (num + den / 2) / den : -((-num + den / 2) / den);
 }
 
-/* Period mean of n conversions summing to sum, centred at 512 codes, 512 codes = fs. */
+/* Period mean of n conversions summing to sum, centred at 512 codes, 512 codes = fs.
+   The ADC truncates (code c covers c .. c + 1 LSB of input): over noisy conversions the
+   mean code is half an LSB below the input, so half a code per conversion is added back
+   (2 sum + n - 1024 n: |.| <= 1024 n <= 2^17 for n <= 128, times fs <= 16000 fits int32). */
 static int32_t adc_mean(uint16_t sum, uint8_t n, int32_t fs)
 {
     if (n == 0u)
         return 0;
-    return round_div(((int32_t)sum - 512L * n) * fs, 512L * n);
+    return round_div((2L * (int32_t)sum + (int32_t)n - 1024L * n) * fs, 1024L * n);
 }
 
 static int32_t hal_read_counts(void *ctx, uint8_t joint)
@@ -228,10 +236,15 @@ uint8_t board_take_tick(void)
     }
     SREG = sreg;
     for (j = 0; j < 2u; ++j) {
-        snap_ma[j] = adc_mean(sum[j], n[j], BOARD_CURRENT_FS_MA);
-        snap_mv[j] = adc_mean(sum[2u + j], n[2u + j], BOARD_VOLTAGE_FS_MV);
+        snap_ma[j] = adc_mean(sum[ch_current[j]], n[ch_current[j]], current_fs_ma[j]);
+        snap_mv[j] = adc_mean(sum[ch_voltage[j]], n[ch_voltage[j]], voltage_fs_mv[j]);
     }
     return 1u;
+}
+
+uint8_t board_work_pending(void)
+{
+    return (uint8_t)(tick_pending || estop_fired || rx_head != rx_tail);
 }
 
 uint8_t board_take_estop(void)
@@ -271,8 +284,8 @@ void board_init(void)
     UCSR0C = (uint8_t)((1u << UCSZ01) | (1u << UCSZ00));
     UCSR0B = (uint8_t)((1u << RXEN0) | (1u << TXEN0) | (1u << RXCIE0));
     /* motors: DIR outputs low, PWM 0, Timer0 phase-correct 8-bit, no prescaler */
-    DDRB |= (uint8_t)((1u << DIR0_BIT) | (1u << DIR1_BIT));
-    PORTB &= (uint8_t)~((1u << DIR0_BIT) | (1u << DIR1_BIT));
+    DDRB |= (uint8_t)((1u << DIR0_BIT) | (1u << DIR1_BIT) | (1u << BOARD_TICK_BUSY_BIT));
+    PORTB &= (uint8_t)~((1u << DIR0_BIT) | (1u << DIR1_BIT) | (1u << BOARD_TICK_BUSY_BIT));
     OCR0A = 0u;
     OCR0B = 0u;
     TCCR0A = (uint8_t)((1u << COM0A1) | (1u << COM0B1) | (1u << WGM00));
@@ -295,8 +308,13 @@ void board_init(void)
     ADMUX = (uint8_t)(1u << REFS0);
     ADCSRA = (uint8_t)((1u << ADEN) | (1u << ADIE) | (1u << ADPS2) | (1u << ADPS1) |
                        (1u << ADPS0) | (1u << ADSC));
+}
+
+void board_start_tick(void)
+{
     /* tick: Timer1 CTC, prescaler 8 -> 2 MHz, 15 ms = 30000 counts */
     TCCR1A = 0u;
+    TCNT1 = 0u;
     OCR1A = (uint16_t)(F_CPU / 8UL / 1000UL * BOARD_TICK_US / 1000UL - 1UL);
     TCCR1B = (uint8_t)((1u << WGM12) | (1u << CS11));
     TIMSK1 = (uint8_t)(1u << OCIE1A);

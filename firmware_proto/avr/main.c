@@ -6,6 +6,7 @@
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <avr/pgmspace.h>
+#include <avr/sleep.h>
 #include <avr/wdt.h>
 
 #include "board.h"
@@ -13,18 +14,14 @@
 #define FIRMWARE_ID 0x47554331UL /* "GUC1": guard C core, AVR port */
 #define RX_BYTES_PER_LOOP 16u    /* keep the tick latency short under a flood of bytes */
 
-/* The guard robot (guardid/robots/guard.yaml): 12-slot quadrature encoders (48 counts per
-   motor revolution) behind 500:1 and 1000:1 gears, 12 V supply, 8-bit PWM, tilt travel
-   -10 .. +35 degrees, PID 40 V/rad, 10 V/(rad s), 1 V s/rad. */
+/* The robot (joints, encoder counts per revolution, supply, limits, PID gains) comes from
+   its YAML through robot_config.h (generated: python firmware_proto/avr/gen_robot.py). */
 static const gf_config_t config PROGMEM = { /* in flash: copied once by gf_init */
-    2u,           /* n_joints */
-    1u,           /* INFO after reset */
+    (uint8_t)ROBOT_N_JOINTS,
+    1u, /* INFO after reset */
     BOARD_TICK_US,
     FIRMWARE_ID,
-    {
-        {24000u, 12000, 8u, 0u, 0, 0, 40000000L, 10000000L, 1000000L},
-        {48000u, 12000, 8u, 1u, -1333, 4666, 40000000L, 10000000L, 1000000L},
-    },
+    ROBOT_JOINT_CONFIG,
 };
 
 static gf_fw_t fw;
@@ -43,14 +40,27 @@ int main(void)
             /* bad configuration: motors stay off (board_init set PWM 0) */
         }
     }
+    board_start_tick(); /* now: gf_init's 128-bit gain arithmetic takes over 15 ms */
+    set_sleep_mode(SLEEP_MODE_IDLE); /* timers, ADC and UART keep running */
     wdt_enable(WDTO_120MS); /* a hung main loop resets the MCU: motors off, INFO sent */
     for (;;) {
         wdt_reset();
         if (board_take_estop())
             gf_estop(&fw);
-        if (board_take_tick())
+        if (board_take_tick()) {
+            BOARD_TICK_BUSY(1); /* instrumentation pin: high while the tick's work runs */
             gf_tick(&fw);
+            BOARD_TICK_BUSY(0);
+        }
         for (n = 0; n < RX_BYTES_PER_LOOP && board_uart_getc(&b); ++n)
             gf_receive_byte(&fw, b);
+        cli(); /* nothing to do: idle until an interrupt (ADC every 104 us at the latest) */
+        if (!board_work_pending()) {
+            sleep_enable();
+            sei(); /* the instruction after sei runs before any interrupt: no lost wake-up */
+            sleep_cpu();
+            sleep_disable();
+        }
+        sei();
     }
 }

@@ -109,19 +109,58 @@ static void u128_neg(gf_u128_t *a)
     u128_add(a, &one);
 }
 
-/* floor(num / den), den != 0; restoring division, one bit at a time. */
+/* Number of significant bits of a (0 for a = 0). Constant shifts only: an 8-bit MCU
+   shifts by a variable amount one bit at a time. */
+static int u128_bits(const gf_u128_t *a)
+{
+    int w, n;
+    for (w = 3; w >= 0; --w) {
+        uint32_t x = a->w[w];
+        if (x != 0u) {
+            for (n = 32 * w; x != 0u; x >>= 1)
+                ++n;
+            return n;
+        }
+    }
+    return 0;
+}
+
+static void u128_shl1(gf_u128_t *a)
+{
+    a->w[3] = (a->w[3] << 1) | (a->w[2] >> 31);
+    a->w[2] = (a->w[2] << 1) | (a->w[1] >> 31);
+    a->w[1] = (a->w[1] << 1) | (a->w[0] >> 31);
+    a->w[0] <<= 1;
+}
+
+/* floor(num / den), den != 0; restoring division, one bit at a time. The remainder starts
+   as num's top bits short of den's length (no quotient bit above them can be set), so the
+   loop runs once per possible quotient bit, not 128 times, with constant shifts only: an
+   8-bit MCU computes SET_PID's gains in its main loop, ahead of the tick's work. */
 static void u128_div(const gf_u128_t *num, const gf_u128_t *den, gf_u128_t *q)
 {
-    gf_u128_t r;
-    int bit;
-    u128_set(&r, 0u);
+    gf_u128_t r = *num;
+    int skip = u128_bits(num) - u128_bits(den) + 1, k, w;
+    uint32_t mask;
     u128_set(q, 0u);
-    for (bit = 127; bit >= 0; --bit) {
-        u128_shl(&r, 1u);
-        r.w[0] |= (num->w[bit / 32] >> (bit % 32)) & 1u;
+    if (skip <= 0)
+        return; /* num < den */
+    for (k = 0; k < skip; ++k) /* r = num >> skip: below den */
+        u128_shr1(&r);
+    w = (skip - 1) / 32;
+    mask = (uint32_t)1u << ((skip - 1) % 32);
+    for (k = skip; k > 0; --k) { /* bit 32 w + log2(mask) of num, then of q */
+        u128_shl1(&r);
+        if (num->w[w] & mask)
+            r.w[0] |= 1u;
         if (u128_ge(&r, den)) {
             u128_sub(&r, den);
-            q->w[bit / 32] |= (uint32_t)1u << (bit % 32);
+            q->w[w] |= mask;
+        }
+        mask >>= 1;
+        if (mask == 0u) {
+            mask = 0x80000000u;
+            --w;
         }
     }
 }

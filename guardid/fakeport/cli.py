@@ -51,7 +51,19 @@ class _Command(click.Command):
     "--pacing", default="lockstep", show_default=True, help="lockstep, realtime or a factor."
 )
 @click.option("--noise/--no-noise", default=True, help="Sensor noise in the emulator.")
-@click.option("--firmware", type=click.Choice(["py", "c"]), default="py", show_default=True)
+@click.option(
+    "--firmware",
+    type=click.Choice(["py", "c", "avr"]),
+    default="py",
+    show_default=True,
+    help="Python emulator, C core (host build) or the AVR port's binary in simavr.",
+)
+@click.option(
+    "--mcu",
+    type=click.Choice(["atmega328p", "atmega2560"]),
+    default=None,
+    help="With --firmware avr: the simulated MCU [default: atmega328p].",
+)
 @click.option("--upstream", is_flag=True, help="Also corrupt host->device bytes.")
 @_fault_options
 @click.option(
@@ -68,7 +80,7 @@ class _Command(click.Command):
 )
 @click.option("--device", "device_name", default=None, hidden=True, envvar=DEVICE_ENV)
 def fake_port(
-    robot, seed, pacing, noise, firmware, upstream, idle_ms, settle_ms, device_name, **faults
+    robot, seed, pacing, noise, firmware, mcu, upstream, idle_ms, settle_ms, device_name, **faults
 ):
     """Serve the emulated robot on a pseudo-terminal until SIGINT/SIGTERM.
 
@@ -76,6 +88,8 @@ def fake_port(
     """
     raw = {"seed": seed, "pacing": pacing, "noise": "1" if noise else "0", "firmware": firmware}
     raw["upstream"] = "1" if upstream else "0"
+    if mcu is not None:
+        raw["mcu"] = mcu
     raw.update({k: v for k, v in faults.items() if v is not None})
     options = parse_options(robot, raw, label=_flag)
     device = make_device(options.robot, options, name=device_name)

@@ -32,7 +32,8 @@ def make_device(robot: str, options: SimOptions, name: str | None = None) -> Dev
 
     Order: a built-in named device (``name`` or ``$GUARDID_FAKEPORT_DEVICE``), then the
     registered factory, else the firmware on the simulated plant: the Python emulator
-    (``firmware=py``) or the C core built as a shared library (``firmware=c``).
+    (``firmware=py``), the C core built as a shared library (``firmware=c``) or the AVR
+    port's binary in simavr (``firmware=avr``, ``mcu=atmega328p|atmega2560``).
     """
     name = name or os.environ.get(DEVICE_ENV) or None
     if name is not None:
@@ -49,8 +50,16 @@ def make_device(robot: str, options: SimOptions, name: str | None = None) -> Dev
             return make_sim_device_c(robot, options)
         except FirmwareBuildError as exc:
             raise SimUrlError(str(exc)) from None
+    if options.firmware == "avr":
+        from guardid.firmware.avr_sim.device import AvrSimError, make_sim_device_avr
+        from guardid.firmware.c_core import FirmwareBuildError
+
+        try:
+            return make_sim_device_avr(robot, options)
+        except (FirmwareBuildError, AvrSimError) as exc:
+            raise SimUrlError(str(exc)) from None
     if options.firmware != "py":
-        raise SimUrlError(f"firmware={options.firmware}: unknown firmware (known: py, c)")
+        raise SimUrlError(f"firmware={options.firmware}: unknown firmware (known: py, c, avr)")
     from guardid.firmware import make_sim_device
 
     return make_sim_device(robot, options)

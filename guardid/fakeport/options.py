@@ -2,7 +2,7 @@
 
 ``sim://<robot name or YAML path>?seed=1&pacing=lockstep|realtime|<factor>&noise=1|0
 &payload_time=30&payload_mass=1.0&payload_com=0.12,0.02,0&drop=1e-4&flip=1e-5
-&latency_ms=16&disconnect_s=40&firmware=py|c&upstream=0|1``
+&latency_ms=16&disconnect_s=40&firmware=py|c|avr&mcu=atmega328p|atmega2560&upstream=0|1``
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ class SimOptions:
     payload_mass: float = 0.0  # [kg]
     payload_com: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [m]
     firmware: str = "py"
+    mcu: str = "atmega328p"  # firmware=avr: the simulated microcontroller
     faults: FaultConfig = field(default_factory=FaultConfig)
 
     @property
@@ -86,8 +87,14 @@ def _com(text: str) -> tuple[float, float, float]:
 
 
 def _firmware(text: str) -> str:
-    if text not in ("py", "c"):
-        raise ValueError("must be py or c")
+    if text not in ("py", "c", "avr"):
+        raise ValueError("must be py, c or avr")
+    return text
+
+
+def _mcu(text: str) -> str:
+    if text not in ("atmega328p", "atmega2560"):
+        raise ValueError("must be atmega328p or atmega2560")
     return text
 
 
@@ -103,6 +110,7 @@ _PARSERS: dict[str, Callable[[str], object]] = {
     "latency_ms": _float(0.0),
     "disconnect_s": _float(0.0, lo_open=True),
     "firmware": _firmware,
+    "mcu": _mcu,
     "upstream": _bool,
 }
 OPTION_NAMES = tuple(_PARSERS)
@@ -129,6 +137,8 @@ def parse_options(
         disconnect_s=values.pop("disconnect_s", None),
         upstream=values.pop("upstream", False),
     )
+    if "mcu" in values and values.get("firmware") != "avr":
+        raise SimUrlError(f"{label('mcu')}: only with firmware=avr")
     return SimOptions(robot=robot or "guard", faults=faults, **values)
 
 

@@ -1,0 +1,127 @@
+"""Build what ``firmware=avr`` runs: the AVR ELF (``make -C firmware_proto/avr``) and the host
+shim that binds it to simavr (``firmware_proto/simavr/avr_sim.c``), cached like the C core.
+
+Both go to the cache directory of :func:`guardid.firmware.c_core.cache_dir`, under names that
+carry a hash of every source, the flags and the compiler, so a changed file rebuilds and
+concurrent builders agree (atomic rename).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+from guardid.firmware.c_core import FIRMWARE_DIR, FirmwareBuildError, cache_dir, find_compiler
+
+MCUS = ("atmega328p", "atmega2560")
+AVR_DIR = FIRMWARE_DIR / "avr"
+SHIM = FIRMWARE_DIR / "simavr" / "avr_sim.c"
+SHIM_CFLAGS = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-O2", "-shared", "-fPIC")
+SHIM_LIBS = ("-lsimavr", "-lm")
+SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
+AVR_TOOLS = ("avr-gcc", "avr-objcopy", "avr-nm", "make")
+F_CPU = 16_000_000
+
+
+def missing_toolchain() -> list[str]:
+    """What ``firmware=avr`` lacks on this machine (empty when it can run)."""
+    missing = [t for t in AVR_TOOLS if shutil.which(t) is None]
+    if find_compiler() is None:
+        missing.append("a host C compiler (gcc)")
+    if not SIMAVR_HEADER.is_file():
+        missing.append("libsimavr-dev (simavr headers)")
+    return missing
+
+
+def _require_toolchain() -> None:
+    missing = missing_toolchain()
+    if missing:
+        raise FirmwareBuildError(
+            f"firmware=avr: {', '.join(missing)} missing "
+            "(apt-get install gcc-avr avr-libc binutils-avr simavr libsimavr-dev), "
+            "or use firmware=py|c"
+        )
+
+
+def _digest(paths, extra: str) -> str:
+    h = hashlib.sha256()
+    for path in sorted(paths):
+        h.update(str(path.relative_to(FIRMWARE_DIR)).encode() + b"\0" + path.read_bytes())
+    h.update(extra.encode())
+    return h.hexdigest()[:16]
+
+
+def _firmware_sources() -> list[Path]:
+    files = [*AVR_DIR.glob("*.[ch]"), AVR_DIR / "Makefile"]
+    files += [FIRMWARE_DIR / n for n in ("guard_proto.c", "guard_proto.h", "guard_proto_msgs.h")]
+    files += [FIRMWARE_DIR / "core" / n for n in ("guard_fw.c", "guard_fw.h")]
+    return files
+
+
+def _run(cmd, what: str) -> None:
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    if res.returncode != 0:
+        lines = (res.stderr or res.stdout).strip().splitlines() or ["(no output)"]
+        raise FirmwareBuildError(f"firmware=avr: {what} failed: {lines[0]}")
+
+
+def build_elf(mcu: str = "atmega328p", extra_cflags: str = "") -> Path:
+    """The AVR firmware's ELF for ``mcu`` (built with the port's own Makefile on first use).
+
+    ``extra_cflags`` (tests) is appended to the compiler flags, e.g.
+    ``-DBOARD_ENC0_SIGN=-1`` to build a deliberately broken port."""
+    if mcu not in MCUS:
+        raise FirmwareBuildError(f"mcu={mcu}: unknown MCU (known: {', '.join(MCUS)})")
+    _require_toolchain()
+    avr_gcc = os.path.realpath(shutil.which("avr-gcc") or "avr-gcc")
+    tag = _digest(_firmware_sources(), f"{mcu}|{extra_cflags}|{avr_gcc}")
+    out = cache_dir() / f"guard-avr-{mcu}-{tag}.elf"
+    if out.is_file():
+        return out
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=out.parent) as tmp:
+        cmd = ["make", "-s", "-f", str(AVR_DIR / "Makefile"), f"MCU={mcu}", f"BUILD={tmp}"]
+        if extra_cflags:
+            cmd.append(f"EXTRA_CFLAGS={extra_cflags}")
+        cmd.append(f"{tmp}/guard.elf")
+        _run(cmd, f"building the AVR firmware for {mcu}")
+        os.replace(Path(tmp) / "guard.elf", out)
+    return out
+
+
+def build_shim() -> Path:
+    """The host shim library (simavr binding) for the current sources and compiler."""
+    _require_toolchain()
+    cc = find_compiler()
+    tag = _digest([SHIM], " ".join((os.path.realpath(cc), *SHIM_CFLAGS, *SHIM_LIBS)))
+    lib = cache_dir() / f"libguard_avr_sim-{tag}.so"
+    if lib.is_file():
+        return lib
+    lib.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(suffix=".so", dir=lib.parent)
+    os.close(fd)
+    try:
+        _run([cc, *SHIM_CFLAGS, str(SHIM), "-o", tmp, *SHIM_LIBS], "building the simavr shim")
+        os.replace(tmp, lib)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return lib
+
+
+def ram_symbols(elf: Path, names) -> dict[str, int]:
+    """Data-space addresses of the firmware's static variables ``names`` (``avr-nm``;
+    link-time-optimisation suffixes such as ``.lto_priv.3`` are ignored)."""
+    res = subprocess.run(["avr-nm", str(elf)], capture_output=True, text=True, check=True)
+    found: dict[str, int] = {}
+    for line in res.stdout.splitlines():
+        parts = line.split()
+        if len(parts) == 3 and parts[1] in "bBdD":
+            base = parts[2].split(".")[0]
+            if base in names:
+                found[base] = int(parts[0], 16) - 0x800000
+    return found
