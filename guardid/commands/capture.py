@@ -13,7 +13,7 @@ from guardid.errors import ConfigError
 
 TRACKING_PERIOD_S = 5.0
 """--online: excitation periods longer than this [s] get a note on tracking speed."""
-UNTIL_STD_CAP_S = 600.0
+UNTIL_STD_CAP_S = 1200.0
 """--until-std without --duration / --periods: the capture ends by this time at the latest [s]."""
 
 
