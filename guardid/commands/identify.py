@@ -8,7 +8,8 @@ import click
 import numpy as np
 import yaml
 
-from guardid.errors import ConfigError
+from guardid.errors import ConfigError, UntrustedResult
+from guardid.identify.checks import check_distinct, check_log_robot, check_params_robot
 
 
 def _robot_for(run, robot_opt):
@@ -50,7 +51,9 @@ def _load(log, robot_opt, columns, sample_period, mat_var, mat_columns):
 
     if not (columns or sample_period is not None or mat_var or mat_columns):
         run = load_run(log)
-        return run, _robot_for(run, robot_opt)
+        description = _robot_for(run, robot_opt)
+        check_log_robot(run, description, f"--robot {robot_opt}" if robot_opt else "its header")
+        return run, description
     from guardid.identify.foreign import parse_mapping
 
     mapping = parse_mapping(columns, sample_period, mat_var, mat_columns)
@@ -78,6 +81,7 @@ def _load_all(logs, robot_opt, foreign):
             raise ConfigError(f"{log}: robot {desc.name}, but {logs[0]} is {description.name}")
         runs.append(run)
         description = description or desc
+    check_distinct(runs)
     return runs, description
 
 
@@ -104,10 +108,17 @@ _PARALLEL_HELP = (
 @click.option("-o", "--output", default=None, help="Write the parameters to this YAML file.")
 @click.option("--plot", "plot_path", default=None, help="Write a PNG report (matplotlib).")
 @click.option("--parallel-filter", "parallel_hz", type=float, default=None, help=_PARALLEL_HELP)
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Report and write the parameters even when the identification cannot be trusted "
+    "(zero, rank-deficient or nearly unexcited regressor, non-finite estimates; exit 4 "
+    "without it).",
+)
 @_foreign_options
 def identify(
     log, robot, method, cutoff, beta, lam, eta, current_units, output, plot_path, parallel_hz,
-    **foreign,
+    force, **foreign,
 ):  # fmt: skip
     """Identify the robot's base parameters and motor constants from LOG [LOG ...].
 
@@ -137,7 +148,14 @@ def identify(
         ticks=arrays["ticks"], in_current_units=current_units, effort_is_torque=run.torque,
         highest_harmonic_hz=_highest_harmonic(log, run), parallel_filter_hz=parallel_hz,
     )  # fmt: skip
+    if result.untrusted and not force:
+        raise UntrustedResult(
+            f"{log}: identification cannot be trusted: {'; '.join(result.untrusted)} "
+            "(--force reports and writes it anyway)"
+        )
     click.echo(table(result, methods))
+    for w in result.untrusted:
+        click.echo(f"warning: {log}: cannot be trusted (--force): {w}", err=True)
     for w in result.warnings:
         click.echo(f"warning: {w}", err=True)
     from guardid.online.offline import track_log
@@ -191,7 +209,9 @@ def validate(log, params_path, robot, cutoff, parallel_hz, **foreign):
     from guardid.identify.report import read_params
 
     params = read_params(params_path)
-    runs, description = _load_all(log, robot or params["robot"], foreign)
+    foreign_log = any(v not in (None, ()) for v in foreign.values())
+    runs, description = _load_all(log, robot or params["robot"] if foreign_log else robot, foreign)
+    check_params_robot(params_path, params, description, robot)
     run = runs[0]
     names = [p["name"] for p in params["base_parameters"]]
     from guardid.identify.pipeline import identified_names
@@ -211,9 +231,14 @@ def validate(log, params_path, robot, cutoff, parallel_hz, **foreign):
     )  # fmt: skip
     joints = [j.name for j in description.joints]
     for m, entry in params["methods"].items():
-        theta = np.asarray(entry["values"], dtype=float)
-        if theta.shape != (len(names),):
-            raise ConfigError(f"{params_path}: methods.{m}.values: expected {len(names)} numbers")
+        try:
+            theta = np.asarray(entry["values"], dtype=float)
+        except (TypeError, ValueError):
+            theta = np.array([])
+        if theta.shape != (len(names),) or not np.all(np.isfinite(theta)):
+            raise ConfigError(
+                f"{params_path}: methods.{m}.values: expected {len(names)} finite numbers"
+            )
         per_joint = d_tau(A, y, theta, per_joint=True)
         detail = ", ".join(f"{j} {100 * v:.2f} %" for j, v in zip(joints, per_joint, strict=True))
         click.echo(f"{m.upper():9s} d_tau {100 * d_tau(A, y, theta):.2f} %  ({detail})")

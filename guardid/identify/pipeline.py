@@ -28,6 +28,7 @@ from guardid.estimators import (
     d_tau,
 )
 from guardid.identify.electrical import MotorEstimate, identify_motor
+from guardid.identify.trust import trust_problems
 
 METHODS = ("ls", "wls", "rls", "hopfield", "gradient", "mlp")
 POOR_REL_STD_PCT = 10.0  #: warn when a parameter's relative standard deviation exceeds this
@@ -63,6 +64,7 @@ class Identification:
     notes: list[str]
     motors: list[MotorEstimate] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    untrusted: list[str] = field(default_factory=list)  # guardid.identify.trust; [] = trusted
 
 
 HARMONIC_CUTOFF_FACTOR = 8.0
@@ -391,6 +393,7 @@ def identify(
         notes=list(cond.notes),
         motors=motors,
         warnings=warnings,
+        untrusted=trust_problems(ls, names, results, motors),
     )
 
 

@@ -28,6 +28,8 @@ class Run:
     current: np.ndarray
     voltage: np.ndarray | None
     torque: bool = False
+    robot_name: str | None = None  # the robot named in a guardid log's header
+    joint_names: tuple[str, ...] | None = None  # a guardid log's joints (column names)
 
 
 def load_run(path, sample_period_s: float | None = None, mapping=None, description=None) -> Run:
@@ -64,6 +66,8 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
         q=q,
         current=current,
         voltage=voltage if voltage.shape == q.shape else None,
+        robot_name=data.header.get("robot"),
+        joint_names=tuple(data.joint_names),
     )
 
 
