@@ -7,6 +7,8 @@ non-zero exit code.
 
 from __future__ import annotations
 
+import sys
+
 import click
 
 from guardid import __version__
@@ -15,7 +17,13 @@ from guardid.errors import report_errors
 
 class _Group(click.Group):
     def invoke(self, ctx: click.Context):
-        return report_errors(super().invoke, ctx)
+        try:
+            return report_errors(super().invoke, ctx)
+        except click.UsageError as exc:  # a sub-command's bad option: one line too
+            where = exc.ctx.command_path if exc.ctx is not None else "guardid"
+            message = " ".join(exc.format_message().split())
+            sys.stderr.write(f"guardid: error: {message} (see '{where} --help')\n")
+            sys.exit(exc.exit_code)
 
 
 @click.group(cls=_Group)

@@ -138,6 +138,14 @@ ROWS = [
     ("excite-base-freq-50", "excite --base-freq 50 -o {x.yaml}", 2, ["--base-freq", "Nyquist"]),
     ("excite-schroeder-too-fast", "excite --kind schroeder --base-freq 2 -o {x.yaml}", 2, ["--base-freq", "20 Hz"]),
     ("excite-one-harmonic", "excite --harmonics 1 -o {x.yaml}", 2, ["--harmonics"]),
+    ("excite-harmonics-100000", "excite --harmonics 100000 --base-freq 0.0001 -o {x.yaml}", 2, ["--harmonics", "149"]),
+    # identify's and validate's options
+    ("identify-cutoff-0", "identify {run} --cutoff 0", 2, ["--cutoff"]),
+    ("identify-cutoff-above-nyquist", "identify {run} --cutoff 1e9", 2, ["--cutoff", "run.csv", "Nyquist"]),
+    ("identify-lam-0", "identify {run} --lam 0", 2, ["--lam"]),
+    ("identify-eta-nan", "identify {run} --method gradient --eta nan", 2, ["--eta"]),
+    ("validate-no-params", "validate {run}", 2, ["--params"]),
+    ("unknown-command", "identfy {run}", 2, ["identfy"]),
     # a robot the fake port cannot simulate
     ("fake-port-planar2", "fake-port --robot planar2", 2, ["planar2", "drive"]),
     ("fake-port-flexlink", "fake-port --robot flexlink", 2, ["flexlink"]),

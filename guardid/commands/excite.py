@@ -183,8 +183,17 @@ def excite(
 def _check_band(kind, harmonics, base_freq, desc) -> None:
     """Refuse a trajectory whose highest frequency [Hz] the robot's sampling cannot carry:
     it must stay below the largest low-pass cut-off identification can use, 0.4 x the
-    Nyquist frequency of the description's sample period (guardid.conditioning.bandwidth)."""
+    Nyquist frequency of the description's sample period (guardid.conditioning.bandwidth),
+    and the highest harmonic's order below the Nyquist order of the SAMPLES-per-period grid
+    on which the condition number is computed."""
     top = highest_frequency(kind, len(desc.joints), harmonics, base_freq)
+    per_period = round(top / base_freq)  # the highest harmonic's order
+    if 2 * per_period >= SAMPLES:
+        raise ExcitationError(
+            f"--harmonics {harmonics}: harmonic order {per_period} needs more than the "
+            f"{SAMPLES} samples per period of the condition-number grid (at most "
+            f"{(SAMPLES - 1) // 2})"
+        )
     limit = MAX_NYQUIST_FRACTION * 0.5 / desc.sample_period
     if top > limit:
         raise ExcitationError(

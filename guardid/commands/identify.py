@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import click
@@ -9,7 +10,12 @@ import numpy as np
 import yaml
 
 from guardid.errors import ConfigError, UntrustedResult
-from guardid.identify.checks import check_distinct, check_log_robot, check_params_robot
+from guardid.identify.checks import (
+    check_cutoff,
+    check_distinct,
+    check_log_robot,
+    check_params_robot,
+)
 
 
 def _robot_for(run, robot_opt):
@@ -85,6 +91,20 @@ def _load_all(logs, robot_opt, foreign):
     return runs, description
 
 
+class _PositiveFinite(click.ParamType):
+    """A finite number > 0 (click's FloatRange lets NaN and inf through)."""
+
+    name = "float"
+
+    def convert(self, value, param, ctx):
+        x = value if isinstance(value, float) else click.FLOAT.convert(value, param, ctx)
+        if not (math.isfinite(x) and x > 0):
+            self.fail(f"{value!r} is not a finite number > 0", param, ctx)
+        return x
+
+
+_POSITIVE = _PositiveFinite()
+
 _PARALLEL_HELP = (
     "Gautier's parallel filter: low-pass the regressor and the torque at HZ [Hz] after the "
     "cut-off filter, then decimate (docs/FOREIGN_LOGS.md) [default: off]."
@@ -100,10 +120,18 @@ _PARALLEL_HELP = (
     show_default=True,
     help="Comma-separated: ls, wls, rls, hopfield, gradient, mlp.",
 )
-@click.option("--cutoff", type=float, default=None, help="Low-pass cut-off [Hz] [default: auto].")
-@click.option("--beta", type=float, default=0.01, show_default=True, help="Hopfield gain beta.")
-@click.option("--lam", type=float, default=1.0, show_default=True, help="RLS forgetting factor.")
-@click.option("--eta", type=float, default=1e-3, show_default=True, help="Gradient gain.")
+@click.option(
+    "--cutoff", type=_POSITIVE, default=None, help="Low-pass cut-off [Hz] [default: auto]."
+)
+@click.option("--beta", type=_POSITIVE, default=0.01, show_default=True, help="Hopfield gain beta.")
+@click.option(
+    "--lam",
+    type=click.FloatRange(0.0, 1.0, min_open=True),
+    default=1.0,
+    show_default=True,
+    help="RLS forgetting factor, in (0, 1].",
+)
+@click.option("--eta", type=_POSITIVE, default=1e-3, show_default=True, help="Gradient gain.")
 @click.option("--current-units", is_flag=True, help="Identify in current units (gain unknown).")
 @click.option("-o", "--output", default=None, help="Write the parameters to this YAML file.")
 @click.option("--plot", "plot_path", default=None, help="Write a PNG report (matplotlib).")
@@ -131,6 +159,7 @@ def identify(
     from guardid.identify.report import plot, table, to_yaml_dict
 
     logs, (runs, description) = log, _load_all(log, robot, foreign)
+    check_cutoff(cutoff, runs)
     run, log = runs[0], logs[0]
     if len({r.torque for r in runs}) > 1:
         raise ConfigError(f"{logs[-1]}: mixes measured torque and motor current with {log}")
@@ -190,7 +219,7 @@ def identify(
 @click.argument("log", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.option("--params", "params_path", required=True, help="params.yaml from guardid identify.")
 @click.option("--robot", default=None, help="Shipped robot or YAML path [default: the params'].")
-@click.option("--cutoff", type=float, default=None, help="Low-pass cut-off [Hz].")
+@click.option("--cutoff", type=_POSITIVE, default=None, help="Low-pass cut-off [Hz].")
 @click.option(
     "--parallel-filter",
     "parallel_hz",
@@ -212,6 +241,7 @@ def validate(log, params_path, robot, cutoff, parallel_hz, **foreign):
     foreign_log = any(v not in (None, ()) for v in foreign.values())
     runs, description = _load_all(log, robot or params["robot"] if foreign_log else robot, foreign)
     check_params_robot(params_path, params, description, robot)
+    check_cutoff(cutoff, runs)
     run = runs[0]
     names = [p["name"] for p in params["base_parameters"]]
     from guardid.identify.pipeline import identified_names

@@ -78,3 +78,20 @@ def check_params_robot(params_path, params: dict, description, robot_opt) -> Non
             f"{params_path}: robot: parameters of robot {named}, but {source} "
             f"robot {description.name}"
         )
+
+
+def check_cutoff(cutoff_hz, runs) -> None:
+    """``--cutoff`` [Hz] must lie below every run's Nyquist frequency (half its median
+    sample rate)."""
+    if cutoff_hz is None:
+        return
+    for run in runs:
+        t = np.asarray(run.t, dtype=float)
+        if len(t) < 2:
+            continue
+        nyquist = 0.5 / float(np.median(np.diff(t)))
+        if not cutoff_hz < nyquist:
+            raise ConfigError(
+                f"--cutoff: {cutoff_hz:g} Hz is not below {run.path}'s Nyquist frequency "
+                f"{nyquist:.4g} Hz"
+            )
