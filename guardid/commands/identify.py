@@ -204,6 +204,8 @@ def identify(
             data = to_yaml_dict(result, description, source)
             if parallel_hz:
                 data["parallel_filter_hz"] = float(parallel_hz)
+            if result.untrusted:  # written with --force: the file says why not to trust it
+                data["untrusted"] = list(result.untrusted)
             yaml.safe_dump(data, f, sort_keys=False)
         click.echo(f"parameters written to {output}")
     if plot_path:
@@ -218,7 +220,11 @@ def identify(
 @click.command()
 @click.argument("log", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.option("--params", "params_path", required=True, help="params.yaml from guardid identify.")
-@click.option("--robot", default=None, help="Shipped robot or YAML path [default: the params'].")
+@click.option(
+    "--robot",
+    default=None,
+    help="Shipped robot or YAML path [default: each log's; a foreign log: the params'].",
+)
 @click.option("--cutoff", type=_POSITIVE, default=None, help="Low-pass cut-off [Hz].")
 @click.option(
     "--parallel-filter",
