@@ -60,6 +60,17 @@ def _data_lines(text: str):
     return lines, [k for k, line in enumerate(lines) if line[:1].isdigit()]
 
 
+def _drop_columns(text: str, names) -> str:
+    """The log without the columns ``names`` (header line and data rows)."""
+    lines, rows = _data_lines(text)
+    head = lines[0].rstrip("\n").split(",")
+    keep = [k for k, name in enumerate(head) if name not in names]
+    for i in [0, *rows]:
+        parts = lines[i].rstrip("\n").split(",")
+        lines[i] = ",".join(parts[k] for k in keep) + "\n"
+    return "".join(lines)
+
+
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("badinput")
@@ -90,6 +101,8 @@ def files(tmp_path_factory):
             bad[rows[100]] = ",".join(parts)
             (d / name).write_text("".join(bad))
         (d / "gzip.csv").write_bytes(gzip.compress(text.encode()))
+        (d / "dropped.csv").write_text(_drop_columns(text, ("q_pan_rad", "i_pan_A")))
+        (d / "no_voltage.csv").write_text(_drop_columns(text, ("v_pan_V", "v_tilt_V")))
         no_footer = "".join(lines[: rows[-1] + 1])
         (d / "appended.csv").write_text(no_footer + "".join(lines[k] for k in rows))
         (d / "cut.csv").write_text(no_footer[: -len(lines[rows[-1]]) // 2])
@@ -156,6 +169,7 @@ ROWS = [
     ("log-gzip-named-csv", "identify {gzip.csv}", 2, ["gzip.csv"]),
     ("log-ticks-restart", "identify {appended.csv}", 2, ["appended.csv", "tick"]),
     ("log-missing", "identify {nowhere.csv}", 2, ["nowhere.csv"]),
+    ("log-a-joints-columns-dropped", "identify {dropped.csv}", 2, ["dropped.csv", "q_*"]),
     # capture's output and limits (other branches)
     pytest.param("capture-dev-full", "capture --trajectory {traj} --duration 1 -o /dev/full", 2, ["/dev/full"], marks=xfail("h-capture")),
     pytest.param("capture-overwrites-a-log", "capture --trajectory {traj} --duration 1 --quiet -o {existing.csv}", 2, ["existing.csv"], marks=xfail("h-capture")),
@@ -201,6 +215,14 @@ def test_cut_last_row_is_a_warning_and_exit_0(files):
     assert "Traceback" not in result.stderr
     if not any("cut.csv" in line and "warning" in line for line in result.stderr.splitlines()):
         pytest.xfail("the reader's cut-row warning is made on branch h-logspeed")
+
+
+def test_a_log_without_voltages_is_identified_without_the_motors(files):
+    """The v_* columns are optional: no voltages, no R and Ke, exit 0."""
+    with one_blas_thread():
+        result = invoke("identify", files / "no_voltage.csv", "--method", "ls")
+    assert result.exit_code == 0, result.stderr
+    assert "ZZ1R" in result.stdout and "motor pan" not in result.stdout
 
 
 def test_never_moved_with_force_writes_and_warns(files):

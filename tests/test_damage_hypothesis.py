@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import pytest
 from badinput_tools import assert_ok_or_one_line, invoke, one_blas_thread, short_capture
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 SETTINGS = dict(
@@ -136,7 +136,9 @@ def _write(tmp_path, data: bytes):
 def test_identify_on_a_damaged_log_exits_0_or_one_line(base, tmp_path, data):
     kinds, blob = damage(base[0], data.draw)
     path = _write(tmp_path, blob)
-    assert_ok_or_one_line(invoke("identify", path, "--method", "ls"), f"identify {kinds}")
+    result = invoke("identify", path, "--method", "ls")
+    event(f"exit {result.exit_code}")  # --hypothesis-show-statistics: how many ran through
+    assert_ok_or_one_line(result, f"identify {kinds}")
 
 
 @settings(max_examples=220, **SETTINGS)
@@ -145,4 +147,5 @@ def test_validate_on_a_damaged_log_exits_0_or_one_line(base, tmp_path, data):
     kinds, blob = damage(base[0], data.draw)
     path = _write(tmp_path, blob)
     result = invoke("validate", path, "--params", base[1])
+    event(f"exit {result.exit_code}")
     assert_ok_or_one_line(result, f"validate {kinds}")

@@ -64,9 +64,14 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
             raise LogFormatError(f"{path}: no {key}_* columns (expected one per joint)")
     q = data.joint_array("q")
     current = data.joint_array("i")
-    voltage = data.joint_array("v")
-    if q.shape[1] == 0 or current.shape != q.shape:
-        raise LogFormatError(f"{path}: expected q_* and i_* columns for every joint")
+    has_v = any(c.startswith("v_") for c in data.columns)
+    voltage = data.joint_array("v") if has_v else np.empty((len(ticks), 0))  # optional
+    joints = data.joint_names
+    if q.shape[1] == 0 or current.shape != q.shape or q.shape[1] != len(joints):
+        raise LogFormatError(
+            f"{path}: expected counts_*, q_* and i_* columns for every joint; found "
+            f"{len(joints)}, {q.shape[1]} and {current.shape[1]}"
+        )
     return Run(
         path=str(path),
         robot=data.header.get("robot_source") or data.header.get("robot"),
