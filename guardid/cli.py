@@ -8,6 +8,7 @@ when they run, see :data:`guardid.commands.COMMANDS`) and turns
 from __future__ import annotations
 
 import importlib
+import sys
 
 import click
 
@@ -37,8 +38,14 @@ class _LazyGroup(click.Group):
         with formatter.section("Commands"):
             formatter.write_dl(rows)
 
-    def invoke(self, ctx):
-        return report_errors(super().invoke, ctx)
+    def invoke(self, ctx: click.Context):
+        try:
+            return report_errors(super().invoke, ctx)
+        except click.UsageError as exc:  # a sub-command's bad option: one line too
+            where = exc.ctx.command_path if exc.ctx is not None else "guardid"
+            message = " ".join(exc.format_message().split())
+            sys.stderr.write(f"guardid: error: {message} (see '{where} --help')\n")
+            sys.exit(exc.exit_code)
 
 
 @click.group(cls=_LazyGroup)

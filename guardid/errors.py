@@ -37,6 +37,13 @@ class LinkError(GuardidError):
     exit_code = 3
 
 
+class UntrustedResult(GuardidError):
+    """A result was computed but cannot be trusted (e.g. an unexcited regressor); nothing
+    is written unless the user insists (``--force``)."""
+
+    exit_code = 4
+
+
 def report_errors(call, *args, **kwargs):
     """Run ``call``; a :class:`GuardidError` becomes ``guardid: error: ...`` on stderr and
     ``sys.exit(exit_code)`` (no traceback). Used by the CLI's group and standalone commands."""

@@ -15,6 +15,7 @@ import click
 import numpy as np
 
 from guardid.commands._status import Status
+from guardid.conditioning.bandwidth import MAX_NYQUIST_FRACTION
 from guardid.excitation import (
     ExcitationError,
     JointLimits,
@@ -23,7 +24,12 @@ from guardid.excitation import (
     regressor_cond,
 )
 from guardid.excitation.limits import SLOW_FRACTION, fixed
-from guardid.excitation.presets import robot_schroeder, robot_sines, seeded_fourier
+from guardid.excitation.presets import (
+    highest_frequency,
+    robot_schroeder,
+    robot_sines,
+    seeded_fourier,
+)
 
 SAMPLES = 300  # cond grid: samples per period
 
@@ -101,6 +107,7 @@ def excite(
     desc = load_robot(robot)
     if not isinstance(desc, ChainDescription):
         raise ExcitationError(f"{robot}: excite needs a serial-chain robot description")
+    _check_band(kind, harmonics, base_freq, desc)
     model = build_model(desc)
     start = _start_pose(start_deg, desc)
     JointLimits.of(desc, margin).check_pose(start)
@@ -179,6 +186,29 @@ def excite(
     if not all(u.within for u in usage):
         echo("WARNING: a limit is exceeded (see above)")
     echo(f"wrote {output} ({time.perf_counter() - t0:.1f} s)")
+
+
+def _check_band(kind, harmonics, base_freq, desc) -> None:
+    """Refuse a trajectory whose highest frequency [Hz] the robot's sampling cannot carry:
+    it must stay below the largest low-pass cut-off identification can use, 0.4 x the
+    Nyquist frequency of the description's sample period (guardid.conditioning.bandwidth),
+    and the highest harmonic's order below the Nyquist order of the SAMPLES-per-period grid
+    on which the condition number is computed."""
+    top = highest_frequency(kind, len(desc.joints), harmonics, base_freq)
+    per_period = round(top / base_freq)  # the highest harmonic's order
+    if 2 * per_period >= SAMPLES:
+        raise ExcitationError(
+            f"--harmonics {harmonics}: harmonic order {per_period} needs more than the "
+            f"{SAMPLES} samples per period of the condition-number grid (at most "
+            f"{(SAMPLES - 1) // 2})"
+        )
+    limit = MAX_NYQUIST_FRACTION * 0.5 / desc.sample_period
+    if top > limit:
+        raise ExcitationError(
+            f"--base-freq {base_freq:g} Hz with --harmonics {harmonics}: highest frequency "
+            f"{top:g} Hz, above {limit:.3g} Hz (0.4 x the Nyquist frequency of {desc.name}'s "
+            f"{desc.sample_period:g} s sample period)"
+        )
 
 
 def _start_pose(text, desc) -> np.ndarray:

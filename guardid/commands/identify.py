@@ -2,12 +2,19 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import click
 import yaml
 
-from guardid.errors import ConfigError, GuardidError
+from guardid.errors import ConfigError, GuardidError, UntrustedResult
+from guardid.identify.checks import (
+    check_cutoff,
+    check_distinct,
+    check_log_robot,
+    check_params_robot,
+)
 
 
 def _robot_for(run, robot_opt):
@@ -51,7 +58,10 @@ def _load(log, robot_opt, columns, sample_period, mat_var, mat_columns):
     given = robot_opt if robot_opt is not None and not isinstance(robot_opt, (str, Path)) else None
     if not (columns or sample_period is not None or mat_var or mat_columns):
         run = load_run(log)
-        return run, given or _robot_for(run, robot_opt)
+        description = given or _robot_for(run, robot_opt)
+        where = f"--robot {robot_opt}" if isinstance(robot_opt, (str, Path)) else "its header"
+        check_log_robot(run, description, "the params file's robot" if given else where)
+        return run, description
     from guardid.identify.foreign import parse_mapping
 
     mapping = parse_mapping(columns, sample_period, mat_var, mat_columns)
@@ -78,6 +88,7 @@ def _load_all(logs, robot_opt, foreign):
             raise ConfigError(f"{log}: robot {desc.name}, but {logs[0]} is {description.name}")
         runs.append(run)
         description = description or desc
+    check_distinct(runs)
     return runs, description
 
 
@@ -102,6 +113,22 @@ _CONSISTENT_HELP = (
     "where the data see nothing; prints them and writes them to params.yaml (consistent:), "
     "which `guardid export` turns into URDF / MJCF (docs/CONSISTENT.md)."
 )
+
+
+class _PositiveFinite(click.ParamType):
+    """A finite number > 0 (click's FloatRange lets NaN and inf through)."""
+
+    name = "float"
+
+    def convert(self, value, param, ctx):
+        x = value if isinstance(value, float) else click.FLOAT.convert(value, param, ctx)
+        if not (math.isfinite(x) and x > 0):
+            self.fail(f"{value!r} is not a finite number > 0", param, ctx)
+        return x
+
+
+_POSITIVE = _PositiveFinite()
+
 _PARALLEL_HELP = (
     "Gautier's parallel filter: low-pass the regressor and the torque at HZ [Hz] after the "
     "cut-off filter, then decimate (docs/FOREIGN_LOGS.md) [default: off]."
@@ -136,10 +163,16 @@ def _arrays(runs):
     help="Comma-separated: ls, wls, bls (bounded: friction and rotor inertia >= 0), rls, "
     "hopfield, gradient, mlp.",
 )
-@click.option("--cutoff", type=float, default=None, help=_CUTOFF_HELP)
-@click.option("--beta", type=float, default=0.01, show_default=True, help="Hopfield gain beta.")
-@click.option("--lam", type=float, default=1.0, show_default=True, help="RLS forgetting factor.")
-@click.option("--eta", type=float, default=1e-3, show_default=True, help="Gradient gain.")
+@click.option("--cutoff", type=_POSITIVE, default=None, help=_CUTOFF_HELP)
+@click.option("--beta", type=_POSITIVE, default=0.01, show_default=True, help="Hopfield gain beta.")
+@click.option(
+    "--lam",
+    type=click.FloatRange(0.0, 1.0, min_open=True),
+    default=1.0,
+    show_default=True,
+    help="RLS forgetting factor, in (0, 1].",
+)
+@click.option("--eta", type=_POSITIVE, default=1e-3, show_default=True, help="Gradient gain.")
 @click.option("--current-units", is_flag=True, help="Identify in current units (gain unknown).")
 @click.option("-o", "--output", default=None, help="Write the parameters to this YAML file.")
 @click.option("--plot", "plot_path", default=None, help="Write a PNG report (matplotlib).")
@@ -158,10 +191,17 @@ def _arrays(runs):
     help="Leave-one-run-out cross-validation over the LOGs (at least 2): fit on all but one, "
     "score the held-out run (stacked relative rms error), print the table.",
 )
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Report and write the parameters even when the identification cannot be trusted "
+    "(zero, rank-deficient or nearly unexcited regressor, non-finite estimates; exit 4 "
+    "without it).",
+)
 @_foreign_options
 def identify(
     log, robot, method, cutoff, beta, lam, eta, current_units, output, plot_path, report_path,
-    parallel_hz, consistent, cv, **foreign,
+    parallel_hz, consistent, cv, force, **foreign,
 ):  # fmt: skip
     """Identify the robot's base parameters and motor constants from LOG [LOG ...].
 
@@ -178,6 +218,7 @@ def identify(
     status = Status()
     status.stage("reading")
     logs, (runs, description) = log, _load_all(log, robot, foreign)
+    check_cutoff(cutoff, runs)
     run, log = runs[0], logs[0]
     if len({r.torque for r in runs}) > 1:
         raise ConfigError(f"{logs[-1]}: mixes measured torque and motor current with {log}")
@@ -194,6 +235,11 @@ def identify(
         ticks=arrays["ticks"], in_current_units=current_units, effort_is_torque=run.torque,
         highest_harmonic_hz=_highest_harmonic(log, run), qd=arrays["qd"],
     )  # fmt: skip
+    if result.untrusted and not force:
+        raise UntrustedResult(
+            f"{log}: identification cannot be trusted: {'; '.join(result.untrusted)} "
+            "(--force reports and writes it anyway)"
+        )
     fit = None
     if consistent:
         status.stage("consistent fit")
@@ -204,6 +250,8 @@ def identify(
         from guardid.physical.report import standard_table
 
         click.echo(standard_table(fit))
+    for w in result.untrusted:
+        click.echo(f"warning: {log}: cannot be trusted (--force): {w}", err=True)
     for w in result.warnings:
         click.echo(f"warning: {w}", err=True)
     from guardid.online.offline import track_log
@@ -229,6 +277,8 @@ def identify(
                 from guardid.physical.report import yaml_section
 
                 data["consistent"] = yaml_section(fit)
+            if result.untrusted:  # written with --force: the file says why not to trust it
+                data["untrusted"] = list(result.untrusted)
             yaml.safe_dump(data, f, sort_keys=False)
         click.echo(f"parameters written to {output}")
     if plot_path or report_path:
@@ -292,7 +342,10 @@ def _cross_validate(logs, runs, description, methods, options, current_units, be
     help="Shipped robot or YAML path [default: the description stored in the first params file].",
 )
 @click.option(
-    "--cutoff", type=float, default=None, help="Cut-off [Hz] [default: the first params file's]."
+    "--cutoff",
+    type=_POSITIVE,
+    default=None,
+    help="Cut-off [Hz] [default: the first params file's].",
 )
 @click.option(
     "--parallel-filter",
@@ -323,6 +376,9 @@ def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, **forei
     first = v.first_params(params_paths)
     spec = robot or (v.stored_robot(*first) if first else None)
     runs, description = _load_all(log, spec, foreign)
+    if first:
+        check_params_robot(first[0], first[1], description, robot)
+    check_cutoff(cutoff, runs)
     options = v.stored_conditioning(*first) if first else None
     options = (options or v.ConditioningOptions()).with_(
         cutoff_hz=cutoff, parallel_filter_hz=parallel_hz

@@ -247,6 +247,6 @@ def regressor_cond(model, traj, samples: int = 300, slow_limits=None) -> float:
 
 def _cond(w: np.ndarray) -> tuple[float, float]:
     s = np.linalg.svd(w, compute_uv=False)
-    if s[-1] <= 0.0 or not np.isfinite(s[-1]):
+    if s.size < w.shape[-1] or s[-1] <= 0.0 or not np.isfinite(s[-1]):
         return np.inf, 0.0
     return float(s[0] / s[-1]), float(s[-1])

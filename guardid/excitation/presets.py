@@ -63,3 +63,11 @@ def robot_schroeder(desc, harmonics: int, base_freq: float, start, margin: float
     names = [j.name for j in desc.joints]
     traj = SchroederMultisine(np.ones(n), freqs, centre_pose(limits, start), joint_names=names)
     return fit_to_limits(traj, limits, grow=True)
+
+
+def highest_frequency(kind: str, n_joints: int, harmonics: int, base_freq: float) -> float:
+    """Highest frequency [Hz] in a ``kind`` trajectory of these presets (``guardid excite``):
+    harmonics x base_freq for fourier and sines; the Schroeder multisine interleaves the
+    joints' harmonics, so its highest is n_joints x harmonics x base_freq."""
+    per_joint = n_joints if kind == "schroeder" else 1
+    return float(per_joint * harmonics * base_freq)

@@ -24,7 +24,7 @@ import tempfile
 from pathlib import Path
 
 from guardid.errors import GuardidError
-from guardid.firmware.emulator import FIRMWARE_ID, FirmwareEmulator, bind_robot
+from guardid.firmware.emulator import FIRMWARE_ID, FirmwareEmulator, bind_robot, require_simulable
 from guardid.firmware.pid import mv_from_volts
 
 FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware_proto"
@@ -287,6 +287,7 @@ def make_sim_device_c(robot: str, options) -> CFirmware:
     from guardid.robot import load_robot
 
     description = load_robot(robot)
+    require_simulable(description)
     plant = make_plant(description, options)
     return CFirmware(description, plant)
 

@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 from collections import deque
 
+from guardid.errors import ConfigError
 from guardid.firmware.pid import FixedPid, counts_per_joint_rev, mv_from_volts, pid_gains_q16
 from guardid.protocol import ENUMS, PROTOCOL_VERSION, Encoder, FrameParser
 from guardid.protocol import MESSAGES as M
@@ -60,13 +61,32 @@ def tick_diff(a: int, b: int) -> int:
     return ((a - b + 0x80000000) & TICK_MASK) - 0x80000000
 
 
+def require_simulable(description) -> None:
+    """Raise a one-line :class:`ConfigError` unless the firmware can run ``description``: a
+    serial chain whose every joint has a drive and an encoder (the guard robot's build)."""
+    where = getattr(description, "source", "") or description.name
+    joints = getattr(description, "joints", None)
+    if joints is None:
+        raise ConfigError(
+            f"{where}: robot {description.name} ({description.model}) cannot be simulated "
+            "behind the firmware: it needs a serial chain with a drive and an encoder per joint"
+        )
+    for k, j in enumerate(joints):
+        missing = [what for what, x in (("drive", j.drive), ("encoder", j.encoder)) if x is None]
+        if missing:
+            raise ConfigError(
+                f"{where}: joints[{k}] ({j.name}): no {' or '.join(missing)}; the firmware "
+                f"emulator needs a drive and an encoder on every joint to simulate robot "
+                f"{description.name}"
+            )
+
+
 def bind_robot(fw, description, plant) -> None:
     """Set the robot facts both firmware implementations need on ``fw``: description,
     plant, joint count ``n``, ``tick_us`` [us], ``tick_period_s`` [s] and ``cpr`` (encoder
     counts per joint revolution). Every joint needs a drive and an encoder."""
+    require_simulable(description)
     joints = description.joints
-    if any(j.drive is None or j.encoder is None for j in joints):
-        raise ValueError(f"{description.name}: every joint needs a drive and an encoder")
     fw.description = description
     fw.plant = plant
     fw.n = len(joints)
@@ -367,5 +387,6 @@ def make_sim_device(robot: str, options) -> FirmwareEmulator:
     from guardid.robot import load_robot
 
     description = load_robot(robot)
+    require_simulable(description)
     plant = make_plant(description, options)
     return FirmwareEmulator(description, plant)

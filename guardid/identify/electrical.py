@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from guardid.errors import GuardidError
+
 
 @dataclass(frozen=True)
 class MotorEstimate:
@@ -77,7 +79,7 @@ def identify_motor(
     A = np.column_stack(cols)
     y = np.asarray(voltage_v, dtype=float)[k]
     if len(k) <= A.shape[1]:
-        raise ValueError(f"joint {joint}: too few consecutive rows ({len(k)}) for the motor fit")
+        raise GuardidError(f"joint {joint}: too few consecutive rows ({len(k)}) for the motor fit")
     normal = A.T @ A
     noise = np.zeros(A.shape[1])
     noise[0] = current_noise_a**2
@@ -86,11 +88,15 @@ def identify_motor(
     if with_inductance:
         noise[2] = 2.0 * current_noise_a**2 / period_s**2
     normal -= len(y) * np.diag(noise)
-    theta = np.linalg.solve(normal, A.T @ y)
+    try:
+        theta = np.linalg.solve(normal, A.T @ y)
+        cov_unit = np.linalg.inv(normal)
+    except np.linalg.LinAlgError:  # a motor that never turns: R and Ke not determined
+        theta, cov_unit = np.full(A.shape[1], np.nan), np.full((A.shape[1],) * 2, np.nan)
     r = y - A @ theta
     sigma2 = r @ r / (len(y) - A.shape[1])
-    cov = sigma2 * np.linalg.inv(normal)
-    std = np.sqrt(np.diag(cov))
+    var = np.diag(sigma2 * cov_unit)
+    std = np.sqrt(np.where(var >= 0.0, var, np.nan))  # negative: not determined (nan)
     return MotorEstimate(
         joint=joint,
         resistance=float(theta[0]),

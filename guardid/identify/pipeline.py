@@ -42,6 +42,7 @@ from guardid.identify.trust import (
     mark_not_converged,
     stacked_error,
 )
+from guardid.identify.untrusted import trust_problems
 
 METHODS = ("ls", "wls", "bls", "rls", "hopfield", "gradient", "mlp")
 POOR_REL_STD_PCT = 10.0  #: warn when a parameter's relative standard deviation exceeds this
@@ -82,6 +83,7 @@ class Identification:
     conditioning: ConditioningOptions = field(default_factory=ConditioningOptions)
     cutoff_reason: str = ""
     rows_summary: str = ""
+    untrusted: list[str] = field(default_factory=list)  # guardid.identify.untrusted; [] = trusted
 
 
 HARMONIC_CUTOFF_FACTOR = HARMONIC_FACTOR  # kept for callers; see conditioning.bandwidth
@@ -239,6 +241,7 @@ def identify(
         conditioning=rows.options,
         cutoff_reason=cond.notes[0] if cond.notes else "",
         rows_summary=rows_summary(cond),
+        untrusted=trust_problems(ls, names, results, motors),
     )
 
 

@@ -140,6 +140,8 @@ def read_params(path) -> dict:
             data = yaml.safe_load(f)
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}: byte {exc.start}: not UTF-8 text") from None
     except yaml.YAMLError as exc:
         raise ConfigError(f"{path}: invalid YAML: {str(exc).splitlines()[0]}") from None
     if not isinstance(data, dict) or data.get("guardid-params") != 1:
@@ -147,6 +149,14 @@ def read_params(path) -> dict:
     for key in ("robot", "base_parameters", "methods"):
         if key not in data:
             raise ConfigError(f"{path}: {key}: missing")
+    base = data["base_parameters"]
+    if not isinstance(base, list) or not all(isinstance(p, dict) and "name" in p for p in base):
+        raise ConfigError(f"{path}: base_parameters: expected a list of mappings with a name")
+    methods = data["methods"]
+    if not isinstance(methods, dict) or not all(
+        isinstance(m, dict) and isinstance(m.get("values"), list) for m in methods.values()
+    ):
+        raise ConfigError(f"{path}: methods: expected method: {{values: [...]}} entries")
     return data
 
 

@@ -31,6 +31,8 @@ class Run:
     torque: bool = False
     highest_harmonic_hz: float | None = None
     qd: np.ndarray | None = None  # measured joint velocities [rad/s | m/s] (foreign qd<j>)
+    robot_name: str | None = None  # the robot named in a guardid log's header
+    joint_names: tuple[str, ...] | None = None  # a guardid log's joints (column names)
 
 
 def load_run(path, sample_period_s: float | None = None, mapping=None, description=None) -> Run:
@@ -45,22 +47,36 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
         raise LogFormatError(f"{path}: a .mat file needs a column mapping (--columns)")
     from guardid.identify.pipeline import trajectory_highest_harmonic
 
-    data = read_log(path)  # the only read of the file: header, rows and footer
+    try:
+        data = read_log(path)  # the only read of the file: header, rows and footer
+    except UnicodeDecodeError as exc:  # e.g. a gzip file named .csv
+        raise LogFormatError(
+            f"{path}: byte {exc.start}: not UTF-8 text (not a guardid log)"
+        ) from None
     for col in ("tick",):
         if col not in data.columns:
             raise LogFormatError(
                 f"{path}: column {col!r} missing (not a guardid log? map a foreign log's "
                 "columns with --columns)"
             )
+    _check_samples(path, data, data.columns["tick"])
     ticks = data.columns["tick"].astype(np.int64)
     if len(ticks) < 10:
         raise LogFormatError(f"{path}: only {len(ticks)} rows")
-    period = sample_period_s or float(data.header.get("sample_period_s", 0.015))
+    period = _sample_period(path, data.header, sample_period_s)
+    for key in ("q", "i"):
+        if not any(c.startswith(key + "_") for c in data.columns):
+            raise LogFormatError(f"{path}: no {key}_* columns (expected one per joint)")
     q = data.joint_array("q")
     current = data.joint_array("i")
-    voltage = data.joint_array("v")
-    if q.shape[1] == 0 or current.shape != q.shape:
-        raise LogFormatError(f"{path}: expected q_* and i_* columns for every joint")
+    has_v = any(c.startswith("v_") for c in data.columns)
+    voltage = data.joint_array("v") if has_v else np.empty((len(ticks), 0))  # optional
+    joints = data.joint_names
+    if q.shape[1] == 0 or current.shape != q.shape or q.shape[1] != len(joints):
+        raise LogFormatError(
+            f"{path}: expected counts_*, q_* and i_* columns for every joint; found "
+            f"{len(joints)}, {q.shape[1]} and {current.shape[1]}"
+        )
     return Run(
         path=str(path),
         robot=data.header.get("robot_source") or data.header.get("robot"),
@@ -70,7 +86,42 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
         current=current,
         voltage=voltage if voltage.shape == q.shape else None,
         highest_harmonic_hz=trajectory_highest_harmonic(data.header.get("trajectory")),
+        robot_name=data.header.get("robot"),
+        joint_names=tuple(data.joint_names),
     )
+
+
+def _check_samples(path, data, tick) -> None:
+    """Refuse non-finite values in the columns identification uses, ticks that are not
+    integers or do not increase (two logs appended, a restarted counter), naming the first
+    bad data row (1 = the first row after the header)."""
+    used = [c for c in data.columns if c == "tick" or c.split("_")[0] in ("q", "i", "v")]
+    for name in used:
+        bad = np.flatnonzero(~np.isfinite(data.columns[name]))
+        if bad.size:
+            raise LogFormatError(
+                f"{path}: data row {bad[0] + 1}: column {name} is {data.columns[name][bad[0]]}"
+            )
+    bad = np.flatnonzero((tick != np.round(tick)) | (np.abs(tick) > 2**53))
+    if bad.size:
+        raise LogFormatError(f"{path}: data row {bad[0] + 1}: tick {tick[bad[0]]!r} is not a count")
+    back = np.flatnonzero(np.diff(tick) <= 0)
+    if back.size:
+        k = int(back[0]) + 1
+        raise LogFormatError(
+            f"{path}: data row {k + 1}: tick {int(tick[k])} after {int(tick[k - 1])} (ticks "
+            "must increase: two logs appended or a restarted counter?)"
+        )
+
+
+def _sample_period(path, header, given) -> float:
+    """The sample period [s]: ``given``, else the header's sample_period_s, else 0.015."""
+    value = given or header.get("sample_period_s", 0.015)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < 1e3:
+        raise LogFormatError(
+            f"{path}: header: sample_period_s: expected seconds > 0, got {value!r}"
+        )
+    return float(value)
 
 
 def _load_foreign(path, mapping, description) -> Run:

@@ -62,7 +62,17 @@ def load_robot(spec: str | Path) -> ChainDescription | FlexibleLinkDescription:
                 f"{spec_str}: no such robot file (shipped robots: {', '.join(SHIPPED)})"
             )
     try:
-        data = yaml.safe_load(path.read_text())
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(
+            f"{path.name}: byte {exc.start}: not UTF-8 text (a robot description is YAML)"
+        ) from None
+    except OSError as exc:
+        raise ConfigError(f"{path.name}: cannot read: {exc.strerror or exc}") from None
+    try:
+        data = yaml.safe_load(text)
+    except RecursionError:
+        raise ConfigError(f"{path.name}: invalid YAML (nested too deeply)") from None
     except yaml.YAMLError as exc:
         line = getattr(getattr(exc, "problem_mark", None), "line", None)
         where = f"line {line + 1}" if line is not None else "<yaml>"

@@ -1,0 +1,91 @@
+"""Can an identification be trusted? Checks on the fitted regressor, from the data alone.
+
+Every threshold follows from the data: machine precision times the regressor's size for the
+rank, the fit's own noise for the excitation. A problem is one short phrase; ``guardid
+identify`` joins them into its one-line refusal (``--force`` writes the parameters anyway).
+
+* non-finite estimates (any method) or standard deviations (LS);
+* a zero regressor column: the motion never excites that parameter;
+* a rank-deficient regressor: after scaling every column to unit norm, a singular value at
+  or below ``s_max * max(rows, columns) * eps`` (numpy's ``matrix_rank`` tolerance);
+* a nearly unexcited regressor: along the least-determined direction of the column-scaled
+  parameters, the LS standard deviation ``sigma / s_min`` exceeds the size of the whole
+  scaled estimate ``||diag(c) theta||`` (c the column norms, i.e. each parameter's torque
+  over the run): the data cannot tell that combination of parameters from zero even at one
+  standard deviation, compared with everything the fit explains.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+DOMINANT = 0.3
+"""A parameter is named in a problem direction when its share of the unit direction vector
+(scaled coordinates) is at least this [-] (1/sqrt(11): one of up to 11 equal parts)."""
+
+
+def _names(direction: np.ndarray, names) -> str:
+    weights = np.abs(direction)
+    order = np.argsort(-weights)
+    picked = [names[k] for k in order if weights[k] >= DOMINANT] or [names[order[0]]]
+    return ", ".join(picked)
+
+
+def regressor_problems(R: np.ndarray, rows: int, sigma: float, theta, names) -> list[str]:
+    """Problems of an LS fit given by its triangular factor ``R`` (p, p) (A^T A = R^T R, A
+    the stacked regressor with ``rows`` rows), the residual standard deviation ``sigma``
+    [unit of y] and the estimate ``theta`` (p,) of the parameters ``names``."""
+    R = np.asarray(R, dtype=float)
+    theta = np.asarray(theta, dtype=float)
+    p = R.shape[1]
+    if not (np.all(np.isfinite(R)) and np.isfinite(sigma) and np.all(np.isfinite(theta))):
+        return []  # reported as non-finite by trust_problems
+    col = np.linalg.norm(R, axis=0)  # ||A_k||: Q is orthogonal
+    eps = np.finfo(float).eps
+    zero = col <= eps * max(float(col.max(initial=0.0)), np.finfo(float).tiny) * max(rows, p)
+    if np.any(zero):
+        which = ", ".join(n for n, z in zip(names, zero, strict=True) if z)
+        return [f"{which}: regressor column zero (the motion never excites it)"]
+    _, s, vt = np.linalg.svd(R / col, full_matrices=False)
+    tol = s[0] * max(rows, p) * eps
+    deficient = s <= tol
+    if np.any(deficient):
+        rank = int(np.sum(~deficient))
+        which = _names(vt[-1], names)
+        return [f"regressor rank {rank} of {p}: {which} cannot be told apart from the others"]
+    worst_std = sigma / s[-1]
+    size = float(np.linalg.norm(col * theta))
+    if worst_std > size:
+        pct = 100.0 * worst_std / size if size > 0 else np.inf
+        return [
+            f"regressor nearly unexcited: the least-determined combination of "
+            f"{_names(vt[-1], names)} has a standard deviation of {pct:.0f} % of the "
+            "whole estimate (scaled by each parameter's torque over the run)"
+        ]
+    return []
+
+
+def trust_problems(ls, names, results: dict, motors=()) -> list[str]:
+    """Every reason not to trust an identification, [] when there is none.
+
+    ``ls``: the fitted :class:`guardid.estimators.LeastSquares` on the identification rows;
+    ``results``: {method: MethodResult}; ``motors``: MotorEstimate list (R [ohm], Ke [V s/rad]
+    with their standard deviations)."""
+    problems = []
+    for method, r in results.items():
+        bad = [n for n, x in zip(names, np.asarray(r.theta, dtype=float), strict=True)
+               if not np.isfinite(x)]  # fmt: skip
+        if bad:
+            problems.append(f"{method.upper()} estimate not finite for {', '.join(bad)}")
+    sigma = float(np.sqrt(max(float(getattr(ls, "sigma2_", np.nan)), 0.0)))
+    regressor = regressor_problems(ls.R_, ls.n_rows_, sigma, ls.theta_, names)
+    problems += regressor
+    std = np.asarray(getattr(ls, "std_", np.full(len(names), np.nan)), dtype=float)
+    if not regressor and not np.all(np.isfinite(std)):  # a singular regressor explains it
+        bad = [n for n, x in zip(names, std, strict=True) if not np.isfinite(x)]
+        problems.append(f"LS standard deviation not finite for {', '.join(bad)}")
+    for m in motors:
+        values = (m.resistance, m.resistance_std, m.ke, m.ke_std)
+        if not all(np.isfinite(v) for v in values):
+            problems.append(f"motor {m.joint}: R or Ke not determined (the joint hardly moves)")
+    return problems
