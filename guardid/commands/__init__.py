@@ -16,7 +16,7 @@ COMMANDS = [
     ("identify", "guardid.commands.identify", "identify",
      "Identify the robot's base parameters and motor constants from LOG [LOG ...]."),
     ("validate", "guardid.commands.identify", "validate",
-     "Torque prediction error (d_tau) of identified parameters on other runs (LOG [LOG ...])."),
+     "Score parameter sets on runs LOG [LOG ...]: torque prediction error, all joints stacked."),
     ("fake-port", "guardid.commands.fake_port", "fake_port",
      "Serve the emulated robot on a pseudo-terminal until SIGINT/SIGTERM."),
     ("ports", "guardid.commands.ports", "ports",
