@@ -142,7 +142,10 @@ def test_no_encoder_edge_missed_at_12v_on_both_joints_with_streaming():
     # wire): it trails the pins' count by at most speed x (15 + 3 ms) = 4000/s x 18 ms = 72
     counts = dev.pin_counts()
     assert 0 <= counts[0] - rows[-1].position[0] <= 80 and counts[0] > 2500
-    assert st["vectors"]["PCINT2 (encoders)"]["count"] >= st["edges0"] + st["edges1"] - 5
+    # every edge counted (above) is the promise; the interrupt count may fall short of the
+    # edges, since an edge of one joint inside the other's ISR is served by that same
+    # interrupt (the pins are read at its entry): it must stay within 1 % of them
+    assert st["vectors"]["PCINT2 (encoders)"]["count"] >= 0.99 * (st["edges0"] + st["edges1"])
     assert st["tx_bytes"] >= 41 * 60 and st["late_outputs"] == 0
     assert st["work_max"] < 0.5 * P
 
@@ -235,9 +238,11 @@ def test_set_pid_at_any_phase_of_the_tick_keeps_the_tick_work_under_half_the_bud
         host = Host(dev)
         works = []
         fills = range(0, 176, 8)
-        set_pid = host.enc.encode(_msg("SET_PID", joint=0, kp=40_000_000, ki=10_000_000,
-                                       kd=1_000_000))  # fmt: skip
         for fill in fills:
+            # a new frame (sequence number) each time: a repeated frame is answered again
+            # without being applied (the firmware's duplicate rule), so no gain arithmetic
+            set_pid = host.enc.encode(_msg("SET_PID", joint=0, kp=40_000_000, ki=10_000_000,
+                                           kd=1_000_000))  # fmt: skip
             dev.receive(b"\x00" * fill + set_pid)
             host.step(3)
             works.append(dev.stats()["work_max"])

@@ -67,12 +67,23 @@ def rotor_mass_matrix(desc):
     return m
 
 
+def coulomb_shape(fr, qd):
+    """The Coulomb term's shape, written here from docs/ROBOT_YAML.md (not guardid's code)."""
+    if fr.model == "sign":
+        return np.sign(qd)
+    if fr.model == "tanh":
+        return np.tanh(qd / fr.velocity_scale)
+    if fr.model == "atan":
+        return np.arctan(qd / fr.velocity_scale)
+    raise AssertionError(f"no independent shape for friction model {fr.model}")
+
+
 def friction_torque(desc, qd):
     out = np.zeros_like(qd)
     for j, joint in enumerate(desc.joints):
         fr = joint.friction
         if fr is not None:
-            out[:, j] = fr.viscous * qd[:, j] + fr.coulomb * np.sign(qd[:, j]) + fr.offset
+            out[:, j] = fr.viscous * qd[:, j] + fr.coulomb * coulomb_shape(fr, qd[:, j]) + fr.offset
     return out
 
 
@@ -182,9 +193,12 @@ def test_regressor_and_base_parameters_match_pinocchio(robot):
                     unit = np.array([[s * s, s], [s, 1.0]])
                 cols.append((qdd @ unit.T)[:, :, None])
     for j, joint in enumerate(desc.joints):
-        if joint.friction is not None:
+        fr = joint.friction
+        if fr is not None:
+            # the offset's column too: the base regressor keeps it when the offset is declared
+            # absent (identification then leaves it out, at 0)
             f = np.zeros((len(q), n, 3))
-            f[:, j] = np.column_stack([qd[:, j], np.sign(qd[:, j]), np.ones(len(q))])
+            f[:, j] = np.column_stack([qd[:, j], coulomb_shape(fr, qd[:, j]), np.ones(len(q))])
             cols.append(f)
     w = np.concatenate(cols, axis=2).reshape(len(q) * n, -1)
     yb = model.base_regressor(q, qd, qdd).reshape(len(q) * n, -1)
