@@ -60,6 +60,8 @@ class LinkEngine:
         """Time [ns] of the next event, or None when nothing will ever happen."""
         if self.disconnected:
             return None
+        if self._latency is None and self._disconnect_ns is None:
+            return (self.ticks + 1) * self.tick_ns  # a clean link: only device ticks
         times = [(self.ticks + 1) * self.tick_ns]
         if self._latency is not None and self._latency.deadline_ns is not None:
             times.append(self._latency.deadline_ns)
@@ -107,7 +109,11 @@ class LinkEngine:
 
     def take(self, size: int | None = None) -> bytes:
         """Remove and return up to ``size`` delivered bytes (all when None)."""
-        n = len(self.rx) if size is None else min(size, len(self.rx))
+        if size is None or size >= len(self.rx):
+            out = bytes(self.rx)
+            self.rx.clear()
+            return out
+        n = size
         out = bytes(self.rx[:n])
         del self.rx[:n]
         return out

@@ -98,6 +98,8 @@ class FirmwareEmulator:
 
         self.parser = FrameParser()
         self.encoder = Encoder()
+        self._telemetry_frame = self.encoder.packer(TELEMETRY, self.n)  # per-tick fast path
+        self._read_plant = getattr(plant, "step_sensors", None) or self._sample_fields
         self._last_frame = None  # (msg_id, seq, message) of the previous host frame
         self._last_reply = None  # its ACK/NAK, resent if the same frame comes again
         self._out = bytearray()
@@ -281,9 +283,9 @@ class FirmwareEmulator:
     # ------------------------------------------------------------------ the 15 ms tick
     def advance(self) -> None:
         """One sample period of the plant, then the firmware's tick (module docstring)."""
-        sample = self.plant.step([mv * 1e-3 for mv in self.applied_mv])
+        counts, volts, amps = self._read_plant([mv * 1e-3 for mv in self.applied_mv])
         self.tick = (self.tick + 1) & TICK_MASK
-        self.counts = counts = [int(c) for c in sample.counts]
+        self.counts = counts = [int(c) for c in counts]
         status = 0
         moving = self.mode != MODE["idle"]
         silent_ms = ((self.tick - self.last_host_tick) & TICK_MASK) * self.tick_us // 1000
@@ -324,17 +326,23 @@ class FirmwareEmulator:
             status |= ESTOP_BIT
         self.status = status
         if self.streaming and self.tick % self.decimation == 0:
-            self._send(
-                TELEMETRY(
-                    self.tick,
-                    status,
-                    self.mode,
-                    tuple(counts),
-                    tuple(_clamp16(mv_from_volts(v)) for v in sample.voltage),
-                    tuple(_clamp16(mv_from_volts(i)) for i in sample.current),
-                    tuple(self.setpoint),
-                )
+            # TELEMETRY(tick, status, mode, counts, voltage [mV], current [mA], setpoint),
+            # packed from its flattened values (the bytes encode() gives for the message)
+            self._out += self._telemetry_frame(
+                self.tick,
+                status,
+                self.mode,
+                *counts,
+                *[_mv_clamp16(v) for v in volts],
+                *[_mv_clamp16(i) for i in amps],
+                *self.setpoint,
             )
+
+    def _sample_fields(self, volts) -> tuple:
+        """(counts, voltage [V], current [A]) of ``plant.step(volts)``, for a plant without
+        the lean ``step_sensors``."""
+        sample = self.plant.step(volts)
+        return sample.counts, sample.voltage, sample.current
 
     def _pwm(self, j: int, mv: int) -> int:
         """Quantise ``mv`` to the PWM duty; return the duty's voltage [mV] (integer math)."""
@@ -357,8 +365,10 @@ class FirmwareEmulator:
         """Nothing to release."""
 
 
-def _clamp16(value: int) -> int:
-    return max(-32768, min(32767, value))
+def _mv_clamp16(value: float) -> int:
+    """``mv_from_volts(value)`` clamped to int16: [V] (or [A]) to milli-units, rounded."""
+    mv = math.floor(value * 1000.0 + 0.5)
+    return -32768 if mv < -32768 else (32767 if mv > 32767 else mv)
 
 
 def make_sim_device(robot: str, options) -> FirmwareEmulator:

@@ -356,6 +356,23 @@ class Plant:
 
     def step(self, u) -> SensorSample:
         """Hold ``u`` (V per driven joint, N m per drive-less one) for one period."""
+        counts, v_meas, i_meas, v_true, i_true = self._measure(*self._integrate(u))
+        q_meas = [
+            c / jc.counts_per_rad if jc.counts_per_rad else x
+            for c, x, jc in zip(counts, self._q, self.joints, strict=True)
+        ]
+        return SensorSample(self._tick, self._tick * self.dt, tuple(counts), tuple(q_meas),
+                            tuple(v_meas), tuple(i_meas), tuple(v_true), tuple(i_true),
+                            tuple(self._q), tuple(self._qd), tuple(self._i))  # fmt: skip
+
+    def step_sensors(self, u) -> tuple[list, list, list]:
+        """:meth:`step` returning only what the firmware reads: encoder counts (ints),
+        period-mean voltage [V] and current [A] as the ADC reports them (lists; the same
+        simulation and noise draws as :meth:`step`, without building a SensorSample)."""
+        return self._measure(*self._integrate(u))[:3]
+
+    def _integrate(self, u):
+        """Advance one period holding ``u``; return what the measurement needs."""
         T, joints = self.dt, self.joints
         t0 = self._tick * T
         applied = [
@@ -390,7 +407,7 @@ class Plant:
             if any(self._held):
                 self._update_contacts()
         self._tick += 1
-        return self._sample(applied, q_start, qd_start, decay, layer)
+        return applied, q_start, qd_start, decay, layer
 
     def _boundary_layer(self, applied):
         """Apply the current transient's impulse; return e^{-T/tau_e} and delta per joint."""
@@ -427,11 +444,13 @@ class Plant:
                 self._qd[j] = v
         return decay, layer
 
-    def _sample(self, applied, q_start, qd_start, decay, layer) -> SensorSample:
+    def _measure(self, applied, q_start, qd_start, decay, layer):
+        """(counts, voltage, current, voltage_true, current_true) at the end of the period
+        (lists; see :class:`SensorSample`); updates the current and the cached M."""
         T, rng, noise = self.dt, self._rng, self.noise
         q1, q2 = self._q
         self._m = self._dyn(q1, q2, *self._qd)[:3]
-        v_true, i_true, v_meas, i_meas, q_meas, counts = [], [], [], [], [], []
+        v_true, i_true, v_meas, i_meas = [], [], [], []
         for j, jc in enumerate(self.joints):
             dq = self._q[j] - q_start[j]
             if not jc.driven:
@@ -462,11 +481,7 @@ class Plant:
             counts = list(self._counts)
         else:
             counts = self._quad_counts(self._q)
-        for c, x, jc in zip(counts, self._q, self.joints, strict=True):
-            q_meas.append(c / jc.counts_per_rad if jc.counts_per_rad else x)
-        return SensorSample(self._tick, self._tick * T, tuple(counts), tuple(q_meas),
-                            tuple(v_meas), tuple(i_meas), tuple(v_true), tuple(i_true),
-                            tuple(self._q), tuple(self._qd), tuple(self._i))  # fmt: skip
+        return counts, v_meas, i_meas, v_true, i_true
 
 
 def make_plant(description, options) -> Plant:
