@@ -139,6 +139,7 @@ class Plant:
         self._last_sign = [1.0, 1.0]
         self._single = any(jc.counts_per_rad and not jc.quadrature for jc in self.joints)
         self._u = [0.0, 0.0]
+        self._c1 = None
         self._configure([0.0, 0.0])
 
     # ------------------------------------------------------------------ set-up helpers
@@ -150,23 +151,34 @@ class Plant:
         return generic_two(self.model, params)
 
     def _configure(self, u) -> None:
-        """Per-tick constants: drive torque c0 - c1 qd and inertia correction a per joint."""
-        c0, c1, a = [], [], []
+        """Per-tick constants: drive torque c0 - c1 qd and inertia correction a per joint
+        (c1 and a depend on the joint only: worked out once, see :meth:`_joint_terms`)."""
+        if self._c1 is None:
+            self._c1, self._a, self._decay = self._joint_terms()
+        c0 = []
         for jc, uj in zip(self.joints, u, strict=True):
             if not jc.driven:
                 c0.append(uj)
-                c1.append(jc.fv)
-                a.append(0.0)
             elif self.open_circuit:
                 c0.append(0.0)
+            else:
+                c0.append(jc.kt * uj / jc.r)
+        self._c0 = c0
+        self._make_accel()
+
+    def _joint_terms(self):
+        """Per joint: velocity coefficient c1 [N m s/rad], inertia correction a [kg m^2]
+        and the current's boundary-layer decay over one period e^{-T/tau_e} (constants)."""
+        c1, a, decay = [], [], []
+        for jc in self.joints:
+            if not jc.driven or self.open_circuit:
                 c1.append(jc.fv)
                 a.append(0.0)
             else:
-                c0.append(jc.kt * uj / jc.r)
                 c1.append(jc.kt * jc.ke / jc.r + jc.fv)
                 a.append(jc.kt * jc.tau_e * jc.ke / jc.r)
-        self._c0, self._c1, self._a = c0, c1, a
-        self._make_accel()
+            decay.append(math.exp(-self.dt / jc.tau_e) if jc.driven and jc.tau_e > 0 else 0.0)
+        return c1, a, decay
 
     def _make_accel(self) -> None:
         """Build the acceleration closure for the current held set and slip directions."""
@@ -415,14 +427,15 @@ class Plant:
         if self.open_circuit:
             return decay, layer
         imp = [0.0, 0.0]
+        qd, acc, cur = self._qd, self._acc, self._i
         for j, jc in enumerate(self.joints):
             if not jc.driven:
                 continue
-            d = math.exp(-self.dt / jc.tau_e) if jc.tau_e > 0 else 0.0
-            slow = (applied[j] - jc.ke * (self._qd[j] - jc.tau_e * self._acc[j])) / jc.r
-            layer[j] = self._i[j] - slow
+            d = self._decay[j]
+            slow = (applied[j] - jc.ke * (qd[j] - jc.tau_e * acc[j])) / jc.r
+            layer[j] = lj = cur[j] - slow
             decay[j] = d
-            imp[j] = jc.kt * layer[j] * jc.tau_e * (1.0 - d)
+            imp[j] = jc.kt * lj * jc.tau_e * (1.0 - d)
         m11, m12, m22 = self._m
         m11 -= self._a[0]
         m22 -= self._a[1]
