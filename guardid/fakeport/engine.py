@@ -102,7 +102,7 @@ class LinkEngine:
         """Bytes from the host reach the device now; its responses enter the link."""
         if self.disconnected:
             raise Disconnected(f"{self.name}: port disconnected")
-        data = self._up.apply(bytes(data))
+        data = self._up.apply(data if type(data) is bytes else bytes(data))
         if data:
             self.device.receive(data)
             self._emit(self.device.take_output())

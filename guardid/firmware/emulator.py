@@ -53,6 +53,7 @@ SETPOINT_DEPTH = 8  #: setpoints buffered ahead of their tick
 DEFAULT_WATCHDOG_MS = 250
 FIRMWARE_ID = 0x47554131  #: "GUA1", the emulators (Python and the C core in the loop)
 TICK_MASK = 0xFFFFFFFF  #: the tick is a u32 counter
+IDLE, POSITION, VOLTAGE = MODE["idle"], MODE["position"], MODE["voltage"]
 
 
 def tick_diff(a: int, b: int) -> int:
@@ -284,20 +285,22 @@ class FirmwareEmulator:
     def advance(self) -> None:
         """One sample period of the plant, then the firmware's tick (module docstring)."""
         counts, volts, amps = self._read_plant([mv * 1e-3 for mv in self.applied_mv])
-        self.tick = (self.tick + 1) & TICK_MASK
-        self.counts = counts = [int(c) for c in counts]
+        self.tick = tick = (self.tick + 1) & TICK_MASK
+        self.counts = counts
         status = 0
-        moving = self.mode != MODE["idle"]
+        moving = self.mode != IDLE
         silent_ms = ((self.tick - self.last_host_tick) & TICK_MASK) * self.tick_us // 1000
         if moving and silent_ms >= self.watchdog_ms:
             self.watchdog_tripped = True
             self._enter_mode(MODE["idle"])
             self._send(M["FAULT"](self.tick, FAULT["watchdog"], 0xFF, silent_ms))
             moving = False
-        if self.mode == MODE["position"]:
+        if self.mode == POSITION:
             due = False
-            while self.buffer and tick_diff(self.buffer[0][0], self.tick) <= 0:
-                _, self.setpoint, self.setpoint_hold = self.buffer.popleft()
+            buffer = self.buffer
+            # tick_diff(buffer[0][0], tick) <= 0, inlined (serial u32 arithmetic)
+            while buffer and ((buffer[0][0] - tick + 0x80000000) & TICK_MASK) <= 0x80000000:
+                _, self.setpoint, self.setpoint_hold = buffer.popleft()
                 due = True
             if not due and not self.setpoint_hold:
                 status |= UNDERRUN_BIT
@@ -307,7 +310,7 @@ class FirmwareEmulator:
                 out.append(pid.step(setpoint[j], counts[j]))
                 if pid.saturated:
                     status |= SATURATED_BITS[j]
-        elif self.mode == MODE["voltage"]:
+        elif self.mode == VOLTAGE:
             out = [
                 max(-s, min(s, v)) for v, s in zip(self.voltage_cmd_mv, self.supply_mv, strict=True)
             ]
@@ -325,16 +328,16 @@ class FirmwareEmulator:
         if self.estop:
             status |= ESTOP_BIT
         self.status = status
-        if self.streaming and self.tick % self.decimation == 0:
+        if self.streaming and tick % self.decimation == 0:
             # TELEMETRY(tick, status, mode, counts, voltage [mV], current [mA], setpoint),
             # packed from its flattened values (the bytes encode() gives for the message)
             self._out += self._telemetry_frame(
-                self.tick,
+                tick,
                 status,
                 self.mode,
                 *counts,
-                *[_mv_clamp16(v) for v in volts],
-                *[_mv_clamp16(i) for i in amps],
+                *map(_mv_clamp16, volts),
+                *map(_mv_clamp16, amps),
                 *self.setpoint,
             )
 
@@ -342,7 +345,7 @@ class FirmwareEmulator:
         """(counts, voltage [V], current [A]) of ``plant.step(volts)``, for a plant without
         the lean ``step_sensors``."""
         sample = self.plant.step(volts)
-        return sample.counts, sample.voltage, sample.current
+        return [int(c) for c in sample.counts], sample.voltage, sample.current
 
     def _pwm(self, j: int, mv: int) -> int:
         """Quantise ``mv`` to the PWM duty; return the duty's voltage [mV] (integer math)."""

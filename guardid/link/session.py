@@ -96,6 +96,7 @@ class Session:
         # wraps read() only is read through read())
         self._read_some = port.read_some if hasattr(type(port), "read_some") else None
         self._setpoint_packers: dict = {}  # joint count -> SETPOINT frame packer
+        self._lockstep = bool(getattr(getattr(port, "options", None), "lockstep", False))
         self.faults: list = []
         self.info = None
         self.resends = 0
@@ -176,7 +177,7 @@ class Session:
 
     def _clock(self) -> float:
         """Seconds: simulated time on a lock-step sim:// port, else the wall clock."""
-        if getattr(getattr(self.port, "options", None), "lockstep", False):
+        if self._lockstep:
             return self.port.sim_time_s
         return time.monotonic()
 

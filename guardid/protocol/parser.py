@@ -86,7 +86,9 @@ class FrameParser:
         """Parse ``chunk``; return the frames it completed, in order."""
         st = self.stats
         st.bytes += len(chunk)
-        parts = (self._buf + chunk if self._buf else bytes(chunk)).split(b"\x00")
+        if self._buf:
+            chunk = self._buf + chunk
+        parts = (chunk if type(chunk) is bytes else bytes(chunk)).split(b"\x00")
         tail = parts.pop()
         if self._discard:
             if not parts:
