@@ -134,10 +134,12 @@ class Serial(SerialBase):
         self._check_open()
         data = to_bytes(data)
         with self._cond:
-            if not self.options.lockstep:
+            if self.options.lockstep:  # nothing ever waits on the condition in lock-step
+                self.engine.host_write(data)
+            else:
                 self.engine.advance_to(self._wall_ns())
-            self.engine.host_write(data)
-            self._cond.notify_all()
+                self.engine.host_write(data)
+                self._cond.notify_all()
         return len(data)
 
     def flush(self) -> None:

@@ -400,6 +400,13 @@ class Plant:
         qd_start = list(self._qd)
         if any(self._held):
             self._update_contacts()
+        if self.substeps == 1 and self._phase == len(self._change_times):
+            # the loop below for one sub-step and no payload change to come
+            self._advance((t0 + T) - t0)
+            if any(self._held):
+                self._update_contacts()
+            self._tick += 1
+            return applied, q_start, qd_start, decay, layer
         h = T / self.substeps
         for m in range(self.substeps):
             ts, te = t0 + m * h, t0 + (m + 1) * h
@@ -464,20 +471,21 @@ class Plant:
         q1, q2 = self._q
         self._m = self._dyn(q1, q2, *self._qd)[:3]
         v_true, i_true, v_meas, i_meas = [], [], [], []
+        q, qd, cur, held = self._q, self._qd, self._i, self._held
         for j, jc in enumerate(self.joints):
-            dq = self._q[j] - q_start[j]
+            dq = q[j] - q_start[j]
             if not jc.driven:
                 vm, im = 0.0, 0.0
-                self._i[j] = 0.0
+                cur[j] = 0.0
             elif self.open_circuit:
                 vm, im = jc.ke * dq / T, 0.0
-                self._i[j] = 0.0
+                cur[j] = 0.0
             else:
                 v, r, te, k = applied[j], jc.r, jc.tau_e, jc.ke
-                acc = self._acc[j] if not self._held[j] else 0.0
-                im = (v * T - k * dq) / r + te * k * (self._qd[j] - qd_start[j]) / r
+                acc = self._acc[j] if not held[j] else 0.0
+                im = (v * T - k * dq) / r + te * k * (qd[j] - qd_start[j]) / r
                 im = (im + layer[j] * te * (1.0 - decay[j])) / T
-                self._i[j] = (v - k * self._qd[j]) / r + te * k * acc / r + layer[j] * decay[j]
+                cur[j] = (v - k * qd[j]) / r + te * k * acc / r + layer[j] * decay[j]
                 vm = v
             v_true.append(vm)
             i_true.append(im)
