@@ -130,14 +130,14 @@ class FirmwareEmulator:
     # ------------------------------------------------------------------ host side
     def receive(self, data: bytes) -> None:
         """Handle every whole valid frame in ``data`` (partial frames wait for more)."""
-        for frame in self.parser.feed(data):
+        handlers = self._BY_ID
+        for frame in self.parser.feed(data):  # a Frame is the (msg_id, seq, message) key
             self.last_host_tick = self.tick
-            key = (frame.msg_id, frame.seq, frame.msg)
-            if key == self._last_frame and self._last_reply is not None:
+            if frame == self._last_frame and self._last_reply is not None:
                 self._send(self._last_reply)  # a retry: answer again, change nothing
                 continue
-            self._last_frame, self._last_reply = key, None
-            handler = self._HANDLERS.get(type(frame.msg).__name__)
+            self._last_frame, self._last_reply = frame, None
+            handler = handlers.get(frame.msg_id)
             if handler is not None:
                 handler(self, frame)
 
@@ -366,6 +366,14 @@ class FirmwareEmulator:
 
     def close(self) -> None:
         """Nothing to release."""
+
+
+#: the emulator's handlers by message id (a parsed frame's first field)
+FirmwareEmulator._BY_ID = {
+    cls.MSG_ID: FirmwareEmulator._HANDLERS[cls.__name__]
+    for cls in M.values()
+    if cls.__name__ in FirmwareEmulator._HANDLERS
+}
 
 
 def _mv_clamp16(value: float) -> int:

@@ -286,12 +286,13 @@ class Plant:
     def _event(self, new):
         """(fraction, joint, stop) of the earliest zero-speed or limit crossing, or None."""
         best = None
+        held, joints, q, qd, sign = self._held, self.joints, self._q, self._qd, self._sign
         for j in (0, 1):
-            if self._held[j]:
+            if held[j]:
                 continue
-            jc = self.joints[j]
-            q0, v0, qn, vn = self._q[j], self._qd[j], new[j], new[2 + j]
-            if jc.fc > 0.0 and self._sign[j] * vn <= 0.0:
+            jc = joints[j]
+            q0, v0, qn, vn = q[j], qd[j], new[j], new[2 + j]
+            if jc.fc > 0.0 and sign[j] * vn <= 0.0:
                 th = v0 / (v0 - vn) if v0 != vn else 0.0
                 if best is None or th < best[0]:
                     best = (th, j, 0)
@@ -326,10 +327,11 @@ class Plant:
         self._q = [q1, q2]
         self._qd = [v1, v2]
         flipped = False
+        held, sign = self._held, self._sign
         for j in (0, 1):
             v = new[2 + j]
-            if not self._held[j] and v != 0.0 and (v > 0.0) != (self._sign[j] > 0.0):
-                self._sign[j] = -self._sign[j]
+            if not held[j] and v != 0.0 and (v > 0.0) != (sign[j] > 0.0):
+                sign[j] = -sign[j]
                 flipped = flipped or self.joints[j].fc != 0.0
         if flipped:  # only after an event budget ran out; keep the friction direction right
             self._make_accel()
