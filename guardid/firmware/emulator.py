@@ -103,6 +103,10 @@ class FirmwareEmulator:
         self._read_plant = getattr(plant, "step_sensors", None) or self._sample_fields
         self._last_frame = None  # (msg_id, seq, message) of the previous host frame
         self._last_reply = None  # its ACK/NAK, resent if the same frame comes again
+        # _HANDLERS (a subclass may replace some) by message id, a parsed frame's first field
+        self._by_id = {
+            c.MSG_ID: self._HANDLERS[c.__name__] for c in M.values() if c.__name__ in self._HANDLERS
+        }
         self._out = bytearray()
         self.tick = 0
         self.mode = MODE["idle"]
@@ -130,7 +134,7 @@ class FirmwareEmulator:
     # ------------------------------------------------------------------ host side
     def receive(self, data: bytes) -> None:
         """Handle every whole valid frame in ``data`` (partial frames wait for more)."""
-        handlers = self._BY_ID
+        handlers = self._by_id
         for frame in self.parser.feed(data):  # a Frame is the (msg_id, seq, message) key
             self.last_host_tick = self.tick
             if frame == self._last_frame and self._last_reply is not None:
@@ -366,14 +370,6 @@ class FirmwareEmulator:
 
     def close(self) -> None:
         """Nothing to release."""
-
-
-#: the emulator's handlers by message id (a parsed frame's first field)
-FirmwareEmulator._BY_ID = {
-    cls.MSG_ID: FirmwareEmulator._HANDLERS[cls.__name__]
-    for cls in M.values()
-    if cls.__name__ in FirmwareEmulator._HANDLERS
-}
 
 
 def _mv_clamp16(value: float) -> int:
