@@ -133,3 +133,10 @@ def test_stop_aware_one_call_read_stops_only_when_it_would_wait():
         assert reader.read_some() == b""  # idle device: the read times out empty
     finally:
         port.close()
+
+
+def test_mass_alone_is_the_mass_part_of_the_fitted_evaluator():
+    dyn = Plant("guard")._dyn
+    rng = np.random.default_rng(4)
+    for q1, q2, v1, v2 in rng.uniform(-3.0, 3.0, (200, 4)).tolist():
+        assert dyn.mass(q2) == dyn(q1, q2, v1, v2)[:3]

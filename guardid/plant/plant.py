@@ -471,7 +471,8 @@ class Plant:
         (lists; see :class:`SensorSample`); updates the current and the cached M."""
         T, rng, noise = self.dt, self._rng, self.noise
         q1, q2 = self._q
-        self._m = self._dyn(q1, q2, *self._qd)[:3]
+        mass = getattr(self._dyn, "mass", None)  # M alone on the fitted 2R evaluator
+        self._m = mass(q2) if mass is not None else self._dyn(q1, q2, *self._qd)[:3]
         v_true, i_true, v_meas, i_meas = [], [], [], []
         q, qd, cur, held = self._q, self._qd, self._i, self._held
         for j, jc in enumerate(self.joints):
