@@ -71,6 +71,15 @@ class LinkEngine:
 
     def step(self) -> None:
         """Run the next event (all parts due at its time)."""
+        if self._latency is None and self._disconnect_ns is None and not self.disconnected:
+            # a clean link: the next event is the device's next tick
+            t = (self.ticks + 1) * self.tick_ns
+            if t > self.now_ns:
+                self.now_ns = t
+            self.ticks += 1
+            self.device.advance()
+            self._emit(self.device.take_output())
+            return
         t = self.next_event_ns()
         if t is None:
             return

@@ -360,6 +360,8 @@ class FirmwareEmulator:
 
     def take_output(self) -> bytes:
         """Bytes emitted since the previous call."""
+        if not self._out:
+            return b""
         out = bytes(self._out)
         self._out.clear()
         return out
