@@ -91,6 +91,11 @@ class StopAwarePort:
     when :class:`CaptureStopped` is raised.
     """
 
+    def __new__(cls, port, stop: StopRequest):
+        if cls is StopAwarePort and hasattr(type(port), "read_some"):
+            cls = _StopAwareSomeReader  # keep the port's one-call read for Session.poll
+        return super().__new__(cls)
+
     def __init__(self, port, stop: StopRequest) -> None:
         self._port = port
         self._stop = stop
@@ -106,3 +111,13 @@ class StopAwarePort:
 
     def __getattr__(self, name: str):
         return getattr(self._port, name)
+
+
+class _StopAwareSomeReader(StopAwarePort):
+    """:class:`StopAwarePort` over a port with ``read_some`` (``sim://``): the same check
+    before a read that would wait."""
+
+    def read_some(self) -> bytes:
+        if self._stop and self._stop.armed and not self._port.in_waiting:
+            self._stop.check()
+        return self._port.read_some()

@@ -60,6 +60,8 @@ class LinkEngine:
         """Time [ns] of the next event, or None when nothing will ever happen."""
         if self.disconnected:
             return None
+        if self._latency is None and self._disconnect_ns is None:
+            return (self.ticks + 1) * self.tick_ns  # a clean link: only device ticks
         times = [(self.ticks + 1) * self.tick_ns]
         if self._latency is not None and self._latency.deadline_ns is not None:
             times.append(self._latency.deadline_ns)
@@ -69,6 +71,15 @@ class LinkEngine:
 
     def step(self) -> None:
         """Run the next event (all parts due at its time)."""
+        if self._latency is None and self._disconnect_ns is None and not self.disconnected:
+            # a clean link: the next event is the device's next tick
+            t = (self.ticks + 1) * self.tick_ns
+            if t > self.now_ns:
+                self.now_ns = t
+            self.ticks += 1
+            self.device.advance()
+            self._emit(self.device.take_output())
+            return
         t = self.next_event_ns()
         if t is None:
             return
@@ -100,14 +111,18 @@ class LinkEngine:
         """Bytes from the host reach the device now; its responses enter the link."""
         if self.disconnected:
             raise Disconnected(f"{self.name}: port disconnected")
-        data = self._up.apply(bytes(data))
+        data = self._up.apply(data if type(data) is bytes else bytes(data))
         if data:
             self.device.receive(data)
             self._emit(self.device.take_output())
 
     def take(self, size: int | None = None) -> bytes:
         """Remove and return up to ``size`` delivered bytes (all when None)."""
-        n = len(self.rx) if size is None else min(size, len(self.rx))
+        if size is None or size >= len(self.rx):
+            out = bytes(self.rx)
+            self.rx.clear()
+            return out
+        n = size
         out = bytes(self.rx[:n])
         del self.rx[:n]
         return out

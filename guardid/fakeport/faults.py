@@ -76,7 +76,7 @@ class Corrupter:
         self.stats.bytes_in += n
         if n == 0 or (self.drop <= 0.0 and self.flip <= 0.0):
             self.stats.bytes_out += n
-            return bytes(data)
+            return data if type(data) is bytes else bytes(data)
         arr = np.frombuffer(data, dtype=np.uint8).copy()
         keep = np.ones(n, dtype=bool)
         if self.drop > 0.0:

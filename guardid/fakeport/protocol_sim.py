@@ -113,15 +113,33 @@ class Serial(SerialBase):
                 raise Disconnected(f"{self.engine.name}: port disconnected")
             return data
 
+    def read_some(self) -> bytes:
+        """What ``read(1)`` waits for, then every byte delivered so far: one call where a
+        host would ask ``in_waiting``, ``read(1)`` and ``read(in_waiting)``."""
+        self._check_open()
+        with self._cond:
+            engine = self.engine
+            if not engine.rx:
+                if self.options.lockstep:
+                    self._fill_lockstep(1)
+                else:
+                    self._fill_realtime(1)
+            data = engine.take()
+            if not data and engine.disconnected:
+                raise Disconnected(f"{engine.name}: port disconnected")
+            return data
+
     def write(self, data) -> int:
         """Hand ``data`` to the device now (real-time: at the current wall-clock time)."""
         self._check_open()
         data = to_bytes(data)
         with self._cond:
-            if not self.options.lockstep:
+            if self.options.lockstep:  # nothing ever waits on the condition in lock-step
+                self.engine.host_write(data)
+            else:
                 self.engine.advance_to(self._wall_ns())
-            self.engine.host_write(data)
-            self._cond.notify_all()
+                self.engine.host_write(data)
+                self._cond.notify_all()
         return len(data)
 
     def flush(self) -> None:

@@ -54,6 +54,7 @@ SETPOINT_DEPTH = 8  #: setpoints buffered ahead of their tick
 DEFAULT_WATCHDOG_MS = 250
 FIRMWARE_ID = 0x47554131  #: "GUA1", the emulators (Python and the C core in the loop)
 TICK_MASK = 0xFFFFFFFF  #: the tick is a u32 counter
+IDLE, POSITION, VOLTAGE = MODE["idle"], MODE["position"], MODE["voltage"]
 
 
 def tick_diff(a: int, b: int) -> int:
@@ -118,8 +119,14 @@ class FirmwareEmulator:
 
         self.parser = FrameParser()
         self.encoder = Encoder()
+        self._telemetry_frame = self.encoder.packer(TELEMETRY, self.n)  # per-tick fast path
+        self._read_plant = getattr(plant, "step_sensors", None) or self._sample_fields
         self._last_frame = None  # (msg_id, seq, message) of the previous host frame
         self._last_reply = None  # its ACK/NAK, resent if the same frame comes again
+        # _HANDLERS (a subclass may replace some) by message id, a parsed frame's first field
+        self._by_id = {
+            c.MSG_ID: self._HANDLERS[c.__name__] for c in M.values() if c.__name__ in self._HANDLERS
+        }
         self._out = bytearray()
         self.tick = 0
         self.mode = MODE["idle"]
@@ -147,14 +154,14 @@ class FirmwareEmulator:
     # ------------------------------------------------------------------ host side
     def receive(self, data: bytes) -> None:
         """Handle every whole valid frame in ``data`` (partial frames wait for more)."""
-        for frame in self.parser.feed(data):
+        handlers = self._by_id
+        for frame in self.parser.feed(data):  # a Frame is the (msg_id, seq, message) key
             self.last_host_tick = self.tick
-            key = (frame.msg_id, frame.seq, frame.msg)
-            if key == self._last_frame and self._last_reply is not None:
+            if frame == self._last_frame and self._last_reply is not None:
                 self._send(self._last_reply)  # a retry: answer again, change nothing
                 continue
-            self._last_frame, self._last_reply = key, None
-            handler = self._HANDLERS.get(type(frame.msg).__name__)
+            self._last_frame, self._last_reply = frame, None
+            handler = handlers.get(frame.msg_id)
             if handler is not None:
                 handler(self, frame)
 
@@ -301,21 +308,23 @@ class FirmwareEmulator:
     # ------------------------------------------------------------------ the 15 ms tick
     def advance(self) -> None:
         """One sample period of the plant, then the firmware's tick (module docstring)."""
-        sample = self.plant.step([mv * 1e-3 for mv in self.applied_mv])
-        self.tick = (self.tick + 1) & TICK_MASK
-        self.counts = counts = [int(c) for c in sample.counts]
+        counts, volts, amps = self._read_plant([mv * 1e-3 for mv in self.applied_mv])
+        self.tick = tick = (self.tick + 1) & TICK_MASK
+        self.counts = counts
         status = 0
-        moving = self.mode != MODE["idle"]
+        moving = self.mode != IDLE
         silent_ms = ((self.tick - self.last_host_tick) & TICK_MASK) * self.tick_us // 1000
         if moving and silent_ms >= self.watchdog_ms:
             self.watchdog_tripped = True
             self._enter_mode(MODE["idle"])
             self._send(M["FAULT"](self.tick, FAULT["watchdog"], 0xFF, silent_ms))
             moving = False
-        if self.mode == MODE["position"]:
+        if self.mode == POSITION:
             due = False
-            while self.buffer and tick_diff(self.buffer[0][0], self.tick) <= 0:
-                _, self.setpoint, self.setpoint_hold = self.buffer.popleft()
+            buffer = self.buffer
+            # tick_diff(buffer[0][0], tick) <= 0, inlined (serial u32 arithmetic)
+            while buffer and ((buffer[0][0] - tick + 0x80000000) & TICK_MASK) <= 0x80000000:
+                _, self.setpoint, self.setpoint_hold = buffer.popleft()
                 due = True
             if not due and not self.setpoint_hold:
                 status |= UNDERRUN_BIT
@@ -325,7 +334,7 @@ class FirmwareEmulator:
                 out.append(pid.step(setpoint[j], counts[j]))
                 if pid.saturated:
                     status |= SATURATED_BITS[j]
-        elif self.mode == MODE["voltage"]:
+        elif self.mode == VOLTAGE:
             out = [
                 max(-s, min(s, v)) for v, s in zip(self.voltage_cmd_mv, self.supply_mv, strict=True)
             ]
@@ -343,18 +352,24 @@ class FirmwareEmulator:
         if self.estop:
             status |= ESTOP_BIT
         self.status = status
-        if self.streaming and self.tick % self.decimation == 0:
-            self._send(
-                TELEMETRY(
-                    self.tick,
-                    status,
-                    self.mode,
-                    tuple(counts),
-                    tuple(_clamp16(mv_from_volts(v)) for v in sample.voltage),
-                    tuple(_clamp16(mv_from_volts(i)) for i in sample.current),
-                    tuple(self.setpoint),
-                )
+        if self.streaming and tick % self.decimation == 0:
+            # TELEMETRY(tick, status, mode, counts, voltage [mV], current [mA], setpoint),
+            # packed from its flattened values (the bytes encode() gives for the message)
+            self._out += self._telemetry_frame(
+                tick,
+                status,
+                self.mode,
+                *counts,
+                *map(_mv_clamp16, volts),
+                *map(_mv_clamp16, amps),
+                *self.setpoint,
             )
+
+    def _sample_fields(self, volts) -> tuple:
+        """(counts, voltage [V], current [A]) of ``plant.step(volts)``, for a plant without
+        the lean ``step_sensors``."""
+        sample = self.plant.step(volts)
+        return [int(c) for c in sample.counts], sample.voltage, sample.current
 
     def _pwm(self, j: int, mv: int) -> int:
         """Quantise ``mv`` to the PWM duty; return the duty's voltage [mV] (integer math)."""
@@ -365,6 +380,8 @@ class FirmwareEmulator:
 
     def take_output(self) -> bytes:
         """Bytes emitted since the previous call."""
+        if not self._out:
+            return b""
         out = bytes(self._out)
         self._out.clear()
         return out
@@ -377,8 +394,10 @@ class FirmwareEmulator:
         """Nothing to release."""
 
 
-def _clamp16(value: int) -> int:
-    return max(-32768, min(32767, value))
+def _mv_clamp16(value: float) -> int:
+    """``mv_from_volts(value)`` clamped to int16: [V] (or [A]) to milli-units, rounded."""
+    mv = math.floor(value * 1000.0 + 0.5)
+    return -32768 if mv < -32768 else (32767 if mv > 32767 else mv)
 
 
 def make_sim_device(robot: str, options) -> FirmwareEmulator:

@@ -15,6 +15,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import serial
@@ -26,9 +27,11 @@ M = MESSAGES
 _ERROR_NAMES = {v: k for k, v in ENUMS["error"].items()}
 
 
-@dataclass(frozen=True)
-class Telemetry:
-    """One TELEMETRY frame in raw units: counts, mV, mA (see ``guardid.protocol``)."""
+class Telemetry(NamedTuple):
+    """One TELEMETRY frame in raw units: counts, mV, mA (see ``guardid.protocol``).
+
+    Built by the parser straight from the frame's unpacked values (fields in wire order,
+    checked against the protocol below), one tuple per frame."""
 
     tick: int
     status: int
@@ -37,6 +40,11 @@ class Telemetry:
     voltage_mv: tuple[int, ...]
     current_ma: tuple[int, ...]
     setpoint_counts: tuple[int, ...]
+
+
+_WIRE = M["TELEMETRY"].SPEC.fields
+if [f.per_joint for f in _WIRE] != [False] * 3 + [True] * 4:
+    raise ImportError("Telemetry no longer matches the protocol's TELEMETRY fields")
 
 
 @dataclass(frozen=True)
@@ -83,6 +91,12 @@ class Session:
         self.parser = FrameParser()
         self.encoder = Encoder()
         self.telemetry: deque[Telemetry] = deque()
+        self.parser.route(M["TELEMETRY"].MSG_ID, Telemetry, self.telemetry.append)
+        # sim:// ports: one call per poll (looked up on the class, so that a proxy which
+        # wraps read() only is read through read())
+        self._read_some = port.read_some if hasattr(type(port), "read_some") else None
+        self._setpoint_packers: dict = {}  # joint count -> SETPOINT frame packer
+        self._lockstep = bool(getattr(getattr(port, "options", None), "lockstep", False))
         self.faults: list = []
         self.info = None
         self.resends = 0
@@ -108,24 +122,26 @@ class Session:
     def poll(self) -> list:
         """Read what is available (waiting up to the port's timeout); return the frames."""
         try:
-            waiting = self.port.in_waiting
-            data = self.port.read(waiting if waiting > 0 else 1)
-            if data and not waiting:
-                rest = self.port.in_waiting  # the rest of what arrived with that byte
-                if rest:
-                    data += self.port.read(rest)
+            if self._read_some is not None:
+                data = self._read_some()
+            else:
+                waiting = self.port.in_waiting
+                data = self.port.read(waiting if waiting > 0 else 1)
+                if data and not waiting:
+                    rest = self.port.in_waiting  # the rest of what arrived with that byte
+                    if rest:
+                        data += self.port.read(rest)
         except (serial.SerialException, OSError) as exc:
             raise LinkError(f"port {self.name}: read failed (disconnected?): {exc}") from None
         if not data:
             return []
-        frames = self.parser.feed(data)
+        frames = self.parser.feed(data)  # telemetry goes straight to self.telemetry
+        if not frames:
+            return frames
         others = []
         for f in frames:
-            msg = f.msg
-            if type(msg) is M["TELEMETRY"]:
-                self.telemetry.append(Telemetry(*msg))
-            elif type(msg) is M["FAULT"]:
-                self.faults.append(msg)
+            if type(f.msg) is M["FAULT"]:
+                self.faults.append(f.msg)
             else:
                 others.append(f)
         return others
@@ -161,7 +177,7 @@ class Session:
 
     def _clock(self) -> float:
         """Seconds: simulated time on a lock-step sim:// port, else the wall clock."""
-        if getattr(getattr(self.port, "options", None), "lockstep", False):
+        if self._lockstep:
             return self.port.sim_time_s
         return time.monotonic()
 
@@ -230,7 +246,13 @@ class Session:
 
     def send_setpoint(self, tick: int, counts) -> None:
         """Queue joint setpoints [counts] for ``tick`` (not acknowledged)."""
-        self.send(M["SETPOINT"](tick & 0xFFFFFFFF, 0, tuple(int(c) for c in counts)))
+        counts = [int(c) for c in counts]
+        pack = self._setpoint_packers.get(len(counts))
+        if pack is None:  # the bytes of encode(SETPOINT(tick, 0, counts)), built once per n
+            pack = self._setpoint_packers[len(counts)] = self.encoder.packer(
+                M["SETPOINT"], len(counts)
+            )
+        self._write(pack(tick & 0xFFFFFFFF, 0, *counts))
 
     def send_voltage(self, volts) -> None:
         """Open-loop motor voltages [V] (voltage mode)."""
@@ -261,7 +283,7 @@ class Session:
         binary in the loop (firmware=avr) after the first row's tick, which then had no
         telemetry.
         """
-        rows = np.asarray(setpoints_counts, dtype=np.int64)
+        rows = np.asarray(setpoints_counts, dtype=np.int64).tolist()  # Python ints per row
         self.telemetry.clear()
         self.set_mode("position")
         first = self.ping() + lead_ticks

@@ -86,6 +86,16 @@ def _make(cm, cg):
         b2_ = 0.5 * (d22 * qd2 * qd2 - d11 * qd1 * qd1) + gr2
         return m11, m12, m22, b1_, b2_
 
+    def mass(q2):
+        """(m11, m12, m22) [kg m^2]: the first three of ``dyn`` (same expressions)."""
+        c, s = cos(q2), sin(q2)
+        cc, sc = c * c, s * c
+        m11 = a0 + a1 * c + a2 * s + a3 * cc + a4 * sc
+        m12 = b0 + b1 * c + b2 * s + b3 * cc + b4 * sc
+        m22 = c0 + c1 * c + c2 * s + c3 * cc + c4 * sc
+        return m11, m12, m22
+
+    dyn.mass = mass
     return dyn
 
 

@@ -139,6 +139,7 @@ class Plant:
         self._last_sign = [1.0, 1.0]
         self._single = any(jc.counts_per_rad and not jc.quadrature for jc in self.joints)
         self._u = [0.0, 0.0]
+        self._c1 = None
         self._configure([0.0, 0.0])
 
     # ------------------------------------------------------------------ set-up helpers
@@ -150,23 +151,34 @@ class Plant:
         return generic_two(self.model, params)
 
     def _configure(self, u) -> None:
-        """Per-tick constants: drive torque c0 - c1 qd and inertia correction a per joint."""
-        c0, c1, a = [], [], []
+        """Per-tick constants: drive torque c0 - c1 qd and inertia correction a per joint
+        (c1 and a depend on the joint only: worked out once, see :meth:`_joint_terms`)."""
+        if self._c1 is None:
+            self._c1, self._a, self._decay = self._joint_terms()
+        c0 = []
         for jc, uj in zip(self.joints, u, strict=True):
             if not jc.driven:
                 c0.append(uj)
-                c1.append(jc.fv)
-                a.append(0.0)
             elif self.open_circuit:
                 c0.append(0.0)
+            else:
+                c0.append(jc.kt * uj / jc.r)
+        self._c0 = c0
+        self._make_accel()
+
+    def _joint_terms(self):
+        """Per joint: velocity coefficient c1 [N m s/rad], inertia correction a [kg m^2]
+        and the current's boundary-layer decay over one period e^{-T/tau_e} (constants)."""
+        c1, a, decay = [], [], []
+        for jc in self.joints:
+            if not jc.driven or self.open_circuit:
                 c1.append(jc.fv)
                 a.append(0.0)
             else:
-                c0.append(jc.kt * uj / jc.r)
                 c1.append(jc.kt * jc.ke / jc.r + jc.fv)
                 a.append(jc.kt * jc.tau_e * jc.ke / jc.r)
-        self._c0, self._c1, self._a = c0, c1, a
-        self._make_accel()
+            decay.append(math.exp(-self.dt / jc.tau_e) if jc.driven and jc.tau_e > 0 else 0.0)
+        return c1, a, decay
 
     def _make_accel(self) -> None:
         """Build the acceleration closure for the current held set and slip directions."""
@@ -274,12 +286,13 @@ class Plant:
     def _event(self, new):
         """(fraction, joint, stop) of the earliest zero-speed or limit crossing, or None."""
         best = None
+        held, joints, q, qd, sign = self._held, self.joints, self._q, self._qd, self._sign
         for j in (0, 1):
-            if self._held[j]:
+            if held[j]:
                 continue
-            jc = self.joints[j]
-            q0, v0, qn, vn = self._q[j], self._qd[j], new[j], new[2 + j]
-            if jc.fc > 0.0 and self._sign[j] * vn <= 0.0:
+            jc = joints[j]
+            q0, v0, qn, vn = q[j], qd[j], new[j], new[2 + j]
+            if jc.fc > 0.0 and sign[j] * vn <= 0.0:
                 th = v0 / (v0 - vn) if v0 != vn else 0.0
                 if best is None or th < best[0]:
                     best = (th, j, 0)
@@ -314,10 +327,11 @@ class Plant:
         self._q = [q1, q2]
         self._qd = [v1, v2]
         flipped = False
+        held, sign = self._held, self._sign
         for j in (0, 1):
             v = new[2 + j]
-            if not self._held[j] and v != 0.0 and (v > 0.0) != (self._sign[j] > 0.0):
-                self._sign[j] = -self._sign[j]
+            if not held[j] and v != 0.0 and (v > 0.0) != (sign[j] > 0.0):
+                sign[j] = -sign[j]
                 flipped = flipped or self.joints[j].fc != 0.0
         if flipped:  # only after an event budget ran out; keep the friction direction right
             self._make_accel()
@@ -356,6 +370,23 @@ class Plant:
 
     def step(self, u) -> SensorSample:
         """Hold ``u`` (V per driven joint, N m per drive-less one) for one period."""
+        counts, v_meas, i_meas, v_true, i_true = self._measure(*self._integrate(u))
+        q_meas = [
+            c / jc.counts_per_rad if jc.counts_per_rad else x
+            for c, x, jc in zip(counts, self._q, self.joints, strict=True)
+        ]
+        return SensorSample(self._tick, self._tick * self.dt, tuple(counts), tuple(q_meas),
+                            tuple(v_meas), tuple(i_meas), tuple(v_true), tuple(i_true),
+                            tuple(self._q), tuple(self._qd), tuple(self._i))  # fmt: skip
+
+    def step_sensors(self, u) -> tuple[list, list, list]:
+        """:meth:`step` returning only what the firmware reads: encoder counts (ints),
+        period-mean voltage [V] and current [A] as the ADC reports them (lists; the same
+        simulation and noise draws as :meth:`step`, without building a SensorSample)."""
+        return self._measure(*self._integrate(u))[:3]
+
+    def _integrate(self, u):
+        """Advance one period holding ``u``; return what the measurement needs."""
         T, joints = self.dt, self.joints
         t0 = self._tick * T
         applied = [
@@ -371,6 +402,13 @@ class Plant:
         qd_start = list(self._qd)
         if any(self._held):
             self._update_contacts()
+        if self.substeps == 1 and self._phase == len(self._change_times):
+            # the loop below for one sub-step and no payload change to come
+            self._advance((t0 + T) - t0)
+            if any(self._held):
+                self._update_contacts()
+            self._tick += 1
+            return applied, q_start, qd_start, decay, layer
         h = T / self.substeps
         for m in range(self.substeps):
             ts, te = t0 + m * h, t0 + (m + 1) * h
@@ -390,7 +428,7 @@ class Plant:
             if any(self._held):
                 self._update_contacts()
         self._tick += 1
-        return self._sample(applied, q_start, qd_start, decay, layer)
+        return applied, q_start, qd_start, decay, layer
 
     def _boundary_layer(self, applied):
         """Apply the current transient's impulse; return e^{-T/tau_e} and delta per joint."""
@@ -398,14 +436,15 @@ class Plant:
         if self.open_circuit:
             return decay, layer
         imp = [0.0, 0.0]
+        qd, acc, cur = self._qd, self._acc, self._i
         for j, jc in enumerate(self.joints):
             if not jc.driven:
                 continue
-            d = math.exp(-self.dt / jc.tau_e) if jc.tau_e > 0 else 0.0
-            slow = (applied[j] - jc.ke * (self._qd[j] - jc.tau_e * self._acc[j])) / jc.r
-            layer[j] = self._i[j] - slow
+            d = self._decay[j]
+            slow = (applied[j] - jc.ke * (qd[j] - jc.tau_e * acc[j])) / jc.r
+            layer[j] = lj = cur[j] - slow
             decay[j] = d
-            imp[j] = jc.kt * layer[j] * jc.tau_e * (1.0 - d)
+            imp[j] = jc.kt * lj * jc.tau_e * (1.0 - d)
         m11, m12, m22 = self._m
         m11 -= self._a[0]
         m22 -= self._a[1]
@@ -427,25 +466,29 @@ class Plant:
                 self._qd[j] = v
         return decay, layer
 
-    def _sample(self, applied, q_start, qd_start, decay, layer) -> SensorSample:
+    def _measure(self, applied, q_start, qd_start, decay, layer):
+        """(counts, voltage, current, voltage_true, current_true) at the end of the period
+        (lists; see :class:`SensorSample`); updates the current and the cached M."""
         T, rng, noise = self.dt, self._rng, self.noise
         q1, q2 = self._q
-        self._m = self._dyn(q1, q2, *self._qd)[:3]
-        v_true, i_true, v_meas, i_meas, q_meas, counts = [], [], [], [], [], []
+        mass = getattr(self._dyn, "mass", None)  # M alone on the fitted 2R evaluator
+        self._m = mass(q2) if mass is not None else self._dyn(q1, q2, *self._qd)[:3]
+        v_true, i_true, v_meas, i_meas = [], [], [], []
+        q, qd, cur, held = self._q, self._qd, self._i, self._held
         for j, jc in enumerate(self.joints):
-            dq = self._q[j] - q_start[j]
+            dq = q[j] - q_start[j]
             if not jc.driven:
                 vm, im = 0.0, 0.0
-                self._i[j] = 0.0
+                cur[j] = 0.0
             elif self.open_circuit:
                 vm, im = jc.ke * dq / T, 0.0
-                self._i[j] = 0.0
+                cur[j] = 0.0
             else:
                 v, r, te, k = applied[j], jc.r, jc.tau_e, jc.ke
-                acc = self._acc[j] if not self._held[j] else 0.0
-                im = (v * T - k * dq) / r + te * k * (self._qd[j] - qd_start[j]) / r
+                acc = self._acc[j] if not held[j] else 0.0
+                im = (v * T - k * dq) / r + te * k * (qd[j] - qd_start[j]) / r
                 im = (im + layer[j] * te * (1.0 - decay[j])) / T
-                self._i[j] = (v - k * self._qd[j]) / r + te * k * acc / r + layer[j] * decay[j]
+                cur[j] = (v - k * qd[j]) / r + te * k * acc / r + layer[j] * decay[j]
                 vm = v
             v_true.append(vm)
             i_true.append(im)
@@ -462,11 +505,7 @@ class Plant:
             counts = list(self._counts)
         else:
             counts = self._quad_counts(self._q)
-        for c, x, jc in zip(counts, self._q, self.joints, strict=True):
-            q_meas.append(c / jc.counts_per_rad if jc.counts_per_rad else x)
-        return SensorSample(self._tick, self._tick * T, tuple(counts), tuple(q_meas),
-                            tuple(v_meas), tuple(i_meas), tuple(v_true), tuple(i_true),
-                            tuple(self._q), tuple(self._qd), tuple(self._i))  # fmt: skip
+        return counts, v_meas, i_meas, v_true, i_true
 
 
 def make_plant(description, options) -> Plant:

@@ -10,7 +10,9 @@ from __future__ import annotations
 import struct
 import zlib
 from collections import namedtuple
+from collections.abc import Callable
 from itertools import chain
+from operator import itemgetter
 from typing import NamedTuple
 
 from cobs import cobs
@@ -61,9 +63,22 @@ def _make_class(spec: MessageSpec) -> type:
 MESSAGES = {m.name: _make_class(m) for m in SPEC.messages}
 BY_ID = {cls.MSG_ID: cls for cls in MESSAGES.values()}
 
+
+def _field_getter(indexers: list) -> Callable[[tuple], tuple]:
+    """``getter(unpacked) -> field values``: one C call picking the fixed fields and slicing
+    the per-joint arrays out of a frame's unpacked struct tuple (no per-frame Python loop)."""
+    if not indexers:
+        return lambda vals: ()
+    if len(indexers) == 1:
+        (one,) = indexers
+        return lambda vals: (vals[one],)
+    return itemgetter(*indexers)
+
+
 _BODY: dict[tuple[int, int], struct.Struct] = {}
-#: (msg_id, raw length) -> (full struct, class, value indexers)
-DECODERS: dict[tuple[int, int], tuple[struct.Struct, type, list]] = {}
+#: (msg_id, raw length) -> (full struct, class, field getter): ``getter(struct.unpack(raw))``
+#: is the tuple of the message's field values (per-joint arrays as tuples)
+DECODERS: dict[tuple[int, int], tuple[struct.Struct, type, Callable[[tuple], tuple]]] = {}
 for _m in SPEC.messages:
     for _n in range(1, MAX_JOINTS + 1) if _m.per_joint else (0,):
         _full = _m.struct_for(_n)
@@ -71,7 +86,7 @@ for _m in SPEC.messages:
         _k = len(_m.fixed)
         _ix: list = list(range(3, 3 + _k))
         _ix += [slice(3 + _k + j * _n, 3 + _k + (j + 1) * _n) for j in range(len(_m.per_joint))]
-        DECODERS[(_m.msg_id, _full.size)] = (_full, MESSAGES[_m.name], _ix)
+        DECODERS[(_m.msg_id, _full.size)] = (_full, MESSAGES[_m.name], _field_getter(_ix))
 
 
 def n_joints_of(msg: tuple) -> int:
@@ -135,7 +150,7 @@ def decode_raw(raw: bytes) -> Frame | str:
     if dec is None:
         return "length" if raw[1] in BY_ID else "unknown_id"
     vals = dec[0].unpack(raw)
-    return Frame(raw[1], vals[2], dec[1]._make([vals[i] for i in dec[2]]))
+    return Frame(raw[1], vals[2], tuple.__new__(dec[1], dec[2](vals)))
 
 
 def decode(frame: bytes) -> Frame | str:
@@ -158,6 +173,30 @@ class Encoder:
         out = encode(msg, self.seq)
         self.seq = (self.seq + 1) & 0xFFFF
         return out
+
+    def packer(self, cls: type, n_joints: int = 0) -> Callable[..., bytes]:
+        """``frame(*values) -> bytes``: the wire frame of message class ``cls`` (n_joints
+        long per-joint arrays) from its field values flattened in wire order (the fixed
+        fields, then each array's entries), numbered by this encoder. The same bytes as
+        :meth:`encode` of the message, without building it (streaming hot paths);
+        :class:`ValueError` for a value out of its field's range."""
+        spec = cls.SPEC
+        n = n_joints if spec.per_joint else 0
+        if spec.per_joint and not 1 <= n <= MAX_JOINTS:
+            raise ValueError(f"{spec.name}: n_joints must be in 1..{MAX_JOINTS}, got {n_joints}")
+        pack, mid, version = _BODY[(spec.msg_id, n)].pack, spec.msg_id, PROTOCOL_VERSION
+        crc32, cobs_encode = zlib.crc32, cobs.encode
+
+        def frame(*values) -> bytes:
+            seq = self.seq
+            try:
+                raw = pack(version, mid, seq, *values)
+            except struct.error as exc:
+                raise ValueError(f"{spec.name}: {exc}") from None
+            self.seq = (seq + 1) & 0xFFFF
+            return cobs_encode(raw + crc32(raw).to_bytes(4, "little")) + b"\x00"
+
+        return frame
 
 
 def to_si(msg: tuple) -> dict:

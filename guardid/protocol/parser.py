@@ -12,6 +12,7 @@ Nothing is ever raised out of :meth:`FrameParser.feed`.
 from __future__ import annotations
 
 import zlib
+from collections.abc import Callable
 from dataclasses import dataclass, fields
 
 from cobs import cobs
@@ -68,6 +69,14 @@ class FrameParser:
         self._buf = b""
         self._discard = False
         self._expect: list[int | None] = [None, None]  # host->mcu, mcu->host
+        self._routes: dict[int, tuple[type, Callable[[tuple], object]]] = {}
+
+    def route(self, msg_id: int, cls: type, sink: Callable[[tuple], object]) -> None:
+        """Hand valid frames of ``msg_id`` to ``sink(msg)`` as they are parsed, ``msg``
+        built as ``cls`` (a tuple class with the message's fields in order, e.g. a
+        NamedTuple), instead of returning them from :meth:`feed` (streaming hot path: no
+        :class:`Frame` per frame). They are counted and sequence-checked as the others."""
+        self._routes[msg_id] = (cls, sink)
 
     def reset_sequence(self) -> None:
         """Forget the expected sequence numbers (e.g. after the peer was reset)."""
@@ -77,7 +86,9 @@ class FrameParser:
         """Parse ``chunk``; return the frames it completed, in order."""
         st = self.stats
         st.bytes += len(chunk)
-        parts = (self._buf + chunk if self._buf else bytes(chunk)).split(b"\x00")
+        if self._buf:
+            chunk = self._buf + chunk
+        parts = (chunk if type(chunk) is bytes else bytes(chunk)).split(b"\x00")
         tail = parts.pop()
         if self._discard:
             if not parts:
@@ -94,6 +105,9 @@ class FrameParser:
         crc32 = zlib.crc32
         decoders = DECODERS
         expect = self._expect
+        routes = self._routes
+        new = tuple.__new__
+        routed = 0
         for seg in parts:
             if not seg:
                 continue
@@ -133,6 +147,11 @@ class FrameParser:
                 else:
                     st.seq_backwards += 1
             expect[d] = (seq + 1) & 0xFFFF
-            out.append(Frame(mid, seq, dec[1]._make([vals[i] for i in dec[2]])))
-        st.frames += len(out)
+            route = routes.get(mid)
+            if route is not None:
+                route[1](new(route[0], dec[2](vals)))
+                routed += 1
+            else:
+                out.append(Frame(mid, seq, new(dec[1], dec[2](vals))))
+        st.frames += len(out) + routed
         return out
