@@ -100,8 +100,14 @@ def test_hopfield_euler_stability_bound_by_hand():
     # the default (linearly implicit) step settles at the same gain and far beyond
     for c in (2.1, 1e4):
         assert abs(_hopfield_scalar("implicit", c, 0.5, 0.0, 600).theta_[0]) < 1e-9
-    # c = 10 from s = 0.5: s1 = 0.5 - 10 * 0.75 * 0.5 = -3.25, outside the box, then away
-    blown = _hopfield_scalar("euler", 10.0, 0.5, 0.0, 50)
-    assert blown.diverged_ and blown.diverged_at_ <= 5
+    # c = 10 from s = 0.5: s1 = 0.5 - 10 * 0.75 * 0.5 = -3.25 (outside the box), then
+    # s2 = -3.25 - 10 (1 - 10.5625) (-3.25) = -314.0, s3 ~ -3.1e8 > blowup = 1e6
+    blown = _hopfield_scalar("euler", 10.0, 0.5, 0.0, 200)
+    assert blown.diverged_ and blown.n_samples_ <= 64  # offline: checked every 64 samples
+    on = Hopfield(theta_n=[0.5], bounds=([-1.0], [1.0]), beta=1.0, dt=10.0, integrator="euler")
+    with np.errstate(over="ignore", invalid="ignore"):
+        for _ in range(5):
+            on.update(np.ones((1, 1)), np.zeros(1))
+    assert on.diverged_ and on.diverged_at_ == 3
     with pytest.raises(ValueError, match="integrator"):
         Hopfield(theta_n=[0.0], half_widths=[1.0], integrator="rk4")

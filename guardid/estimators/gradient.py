@@ -55,7 +55,13 @@ class Gradient(Estimator):
         """Backward Euler step (module doc): th + A_k^T (I / c + A_k A_k^T)^-1 (y_k - A_k th)."""
         M = A_k @ A_k.T
         M[np.diag_indices_from(M)] += 1.0 / (2 * self.eta * self.dt)
-        return th + A_k.T @ np.linalg.solve(M, y_k - A_k @ th)
+        e = y_k - A_k @ th
+        if e.shape == (2,):  # 2 x 2 by Cramer's rule (M is symmetric positive definite)
+            (m00, m01), (_, m11) = M.tolist()
+            e0, e1 = e.tolist()
+            det = m00 * m11 - m01 * m01
+            return th + A_k.T @ np.array([m11 * e0 - m01 * e1, m00 * e1 - m01 * e0]) / det
+        return th + A_k.T @ np.linalg.solve(M, e)
 
     def update(self, A_k, y_k):
         """One step (explicit Euler or implicit) for sample A_k (n_out, p), y_k (n_out,)."""
@@ -78,16 +84,18 @@ class Gradient(Estimator):
         A3, y2 = as_blocks(A, y)
         N, n, p = A3.shape
         self._init_state(p)
-        gAT = (2 * self.eta * self.dt) * A3.transpose(0, 2, 1)
+        AT = A3.transpose(0, 2, 1)
+        if self.integrator == "implicit":
+            # per-sample gain A_k^T (I / c + A_k A_k^T)^-1, all samples at once
+            M = A3 @ AT + np.eye(n) / (2 * self.eta * self.dt)
+            gAT = AT @ np.linalg.inv(M)
+        else:
+            gAT = (2 * self.eta * self.dt) * AT
         th, hist, counts = self.theta_, [], []
         every = max(self.history_every, 1)
-        implicit = self.integrator == "implicit"
         with np.errstate(over="ignore", invalid="ignore"):
             for i in range(N):
-                if implicit:
-                    th = self._implicit_step(th, A3[i], y2[i])
-                else:
-                    th = th + gAT[i] @ (y2[i] - A3[i] @ th)
+                th = th + gAT[i] @ (y2[i] - A3[i] @ th)
                 if (i + 1) % every == 0:
                     hist.append(th)
                     counts.append(i + 1)

@@ -29,7 +29,7 @@ the error along an eigenvector of D S A_k^T A_k S (D = diag(1 - s*^2)) with eige
 1 - s^2 turns negative and the step pushes it further out: the run diverges; that is
 detected (non-finite or max |s| > ``blowup``) and recorded in ``diverged_`` /
 ``diverged_at_`` (sample count); the offline run stops there. Per sample only (``fit_block``
-is ignored); not with windowed weights.
+is ignored; offline, divergence is checked every 64 samples); not with windowed weights.
 
 Offline ``fit`` with ``fit_block`` = K > 1 merges K consecutive samples into one step of
 length K dt with G and S A^T e summed over the K samples (right-hand side time-averaged at
@@ -372,12 +372,23 @@ class Hopfield(Estimator):
         k = max(self.history_every, 1)
         if self.integrator == "euler":
             hist, p_ = [], self.s_.size
-            for i in range(N):
-                self._update_euler(A3[i], y2[i])
-                if (i + 1) % k == 0:
-                    hist.append(self.s_)
-                if self.diverged_:
-                    break
+            S, c, s = self.scale_, self.center_, self.s_
+            g = self.dt / self.beta
+            SAT = A3.transpose(0, 2, 1) * S[:, None]  # S A_k^T (N, p, n)
+            e0 = y2 - A3 @ c  # y_k - A_k c (N, n)
+            B = A3 * S  # A_k S (N, n, p)
+            n_done = 0
+            with np.errstate(over="ignore", invalid="ignore"):
+                for i in range(N):
+                    s = s + g * (1.0 - s * s) * (SAT[i] @ (e0[i] - B[i] @ s))
+                    n_done = i + 1
+                    if n_done % k == 0:
+                        hist.append(s)
+                    if n_done % 64 == 0 and not np.max(np.abs(s)) < self.blowup:
+                        break
+            self.s_, self.theta_, self.n_samples_ = s, c + S * s, n_done
+            if not np.max(np.abs(s)) < self.blowup:
+                self.diverged_, self.diverged_at_ = True, n_done
             self.history_ = (
                 self.center_ + self.scale_ * np.array(hist) if hist else np.empty((0, p_))
             )
