@@ -151,3 +151,24 @@ def test_two_logs_fit_the_motors_on_both(logs, result):
         assert m.resistance == pytest.approx(joint.drive.resistance, rel=0.03)
         assert m.ke == pytest.approx(joint.drive.ke, rel=0.03)
         assert m.resistance_std < min(a.resistance_std, b.resistance_std)
+
+
+def test_hopfield_column_is_the_network_not_least_squares(result, logs):
+    """The Hopfield column is the network's own end value; its equilibrium on the whole log
+    (which is least squares, checked against numpy's lstsq) is only reported when asked,
+    under its own name."""
+    hop, ls = result.results["hopfield"], result.results["ls"]
+    np.testing.assert_array_equal(hop.theta, hop.settings["online_end"])
+    assert "hopfield-eq" not in result.results
+    # a fixed-gain network's end value is not the batch optimum (it sits a few std away)
+    assert np.max(np.abs(hop.theta - ls.theta) / ls.std) > 0.1
+    run = load_run(logs["a"])
+    both = identify(run.t, run.q, run.current, GUARD, methods=("hopfield",),
+                    highest_harmonic_hz=_hh(logs["a"]), hopfield_settle=True)  # fmt: skip
+    np.testing.assert_array_equal(both.results["hopfield"].theta, hop.theta)
+    _, A, y = identification_rows(
+        run.t, run.q, run.current, GUARD, highest_harmonic_hz=_hh(logs["a"])
+    )
+    p = A.shape[-1]
+    lstsq = np.linalg.lstsq(A.reshape(-1, p), y.reshape(-1), rcond=None)[0]
+    assert np.max(np.abs(both.results["hopfield-eq"].theta - lstsq) / ls.std) < 0.01

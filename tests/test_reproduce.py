@@ -37,9 +37,21 @@ def test_registry_and_cli_registration():
 
 
 def test_seed001_table1_within_one_percent(table1):
+    """Default: noisy quantised q and noisy tau through guardid's conditioning.
+
+    Truth: the simulated model's parameters (DESIGN.md section 4). LS must be within 1 %;
+    the online estimators, which see every filtered row once with a fixed gain, are only
+    required to stay within 10 % (on this data they are not within 1 %: see the report).
+    """
     s = table1.summary
-    for name in ("LS", "RLS", "Hopfield"):
-        assert np.all(s["pct_error"][name] < 1.0), (name, s["pct_error"][name])
+    assert not s["exact_acceleration"]
+    assert np.all(s["pct_error"]["LS"] < 1.0), s["pct_error"]["LS"]
+    assert np.all(s["pct_error"]["RLS"] < 1.0), s["pct_error"]["RLS"]  # RLS(lam=1) = LS
+    for name in ("Hopfield", "gradient"):
+        assert np.all(s["pct_error"][name] < 10.0), (name, s["pct_error"][name])
+    # the filter is the conditioning's choice for a known excitation: 5 x 1.7 Hz
+    assert s["cutoff_hz"] == pytest.approx(8.5)
+    assert s["noise"] == {"q": seed001_table1.NOISE_Q_RAD, "tau": seed001_table1.NOISE_TAU}
     # the paper's worst errors, as printed in its Table 1 (actual minus estimate)
     assert s["paper_pct_error"]["LS"].max() == pytest.approx(18.24, abs=0.01)
     assert s["paper_pct_error"]["RLS"].max() == pytest.approx(26.68, abs=0.01)
@@ -47,15 +59,26 @@ def test_seed001_table1_within_one_percent(table1):
     text = table1.text()
     for needle in (
         "paper LS",
-        "paper RLS",
         "Hopfield",
-        "gradient",
-        "measurement noise",
+        "quantised",
+        "Butterworth at 8.5 Hz",
+        "central differences",
         "PID",
         "wall time",
         "misprint",
     ):
         assert needle in text
+
+
+def test_seed001_exact_acceleration_variant():
+    rep = seed001_table1.run(0, exact_acceleration=True)
+    s = rep.summary
+    assert s["exact_acceleration"] and s["noise"] == seed001_table1.NOISE
+    for name in ("LS", "RLS", "Hopfield"):
+        assert np.all(s["pct_error"][name] < 1.0), (name, s["pct_error"][name])
+    assert "no filter" in rep.text()
+    res = CliRunner().invoke(main, ["reproduce", "seed000-slow", "--exact-acceleration"])
+    assert res.exit_code == 2 and "seed001-table1 only" in res.output
 
 
 def test_seed001_deterministic(table1):
@@ -81,16 +104,31 @@ def test_seed000_step_hopfield_settles(step):
     assert ref["step"][0] == pytest.approx(0.7 * math.pi, abs=0.1 * math.pi)
 
 
-def test_seed000_step_gradient_gains(step):
-    verdicts = {eta: g["verdict"] for eta, g in step.summary["gradient"].items()}
-    assert "converges" in verdicts.values()
-    assert "oscillates" in verdicts.values()
-    osc = [g for g in step.summary["gradient"].values() if g["verdict"] == "oscillates"]
-    assert all(g["max_factor"] > 2.0 for g in osc)
-    conv = [g for g in step.summary["gradient"].values() if g["verdict"] == "converges"]
-    assert all(g["max_factor"] < 2.0 and g["diverged_at"] is None for g in conv)
+def test_seed000_step_gain_robustness_is_the_integrators(step):
+    """Same integrator, same settling range: the gain robustness belongs to the integrator.
+
+    Truth: explicit Euler's stability bound, worked out by hand (the per-sample factor
+    1 - k dt mu must stay above -1: k dt lambda_max(A_k^T A_k) < 2), and the implicit step's
+    unconditional stability (factor 1 / (1 + k dt mu) in (0, 1]).
+    """
+    gains = step.summary["gains"]
+    A, _ = flexsim.measurements(flexsim.simulate(seed000_step.mass, lambda t: 1.0), noisy=False)
+    lam_max = np.linalg.eigvalsh(np.einsum("nji,njk->nik", A, A))[:, -1].max()
+    dt = 0.5e-3
+    for est in ("hopfield", "gradient"):
+        imp, eul = gains[(est, "implicit")], gains[(est, "euler")]
+        assert set(imp) == set(eul) == set(seed000_step.GAINS)
+        for k in seed000_step.GAINS:
+            assert imp[k]["verdict"] != "diverges", (est, k)
+            if k * dt * lam_max > 2.0:
+                assert eul[k]["verdict"] == "diverges", (est, k)
+            elif k >= 100:  # fast enough to settle within the 4 pi s windows
+                assert eul[k]["verdict"] == "settles", (est, k)
+        settled = [k for k in seed000_step.GAINS if imp[k]["verdict"] == "settles"]
+        assert min(settled) == 100 and max(settled) == 1e5, (est, settled)  # three decades
     text = step.text()
     assert "hub inertia" in text and "spring sign" in text and "wall time" in text
+    assert "same linearly implicit step" in text and "explicit Euler per sample" in text
 
 
 def test_seed000_slow_tracks_gamma():

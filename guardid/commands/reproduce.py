@@ -15,7 +15,14 @@ NAMES = ("seed000-step", "seed000-slow", "seed000-fast", "seed001-table1")
     "--plot", "plot_dir", default=None, help="Write the paper's figures (PNG) to this directory."
 )
 @click.option("--seed", default=0, show_default=True, help="Seed of the measurement noise.")
-def reproduce(experiment, plot_dir, seed):
+@click.option(
+    "--exact-acceleration",
+    is_flag=True,
+    help="seed001-table1 only: give the estimators the exact q, q', q'' and tau plus small"
+    " white noise (the easy variant) instead of noisy quantised q and noisy tau through"
+    " guardid's conditioning (the default).",
+)
+def reproduce(experiment, plot_dir, seed, exact_acceleration):
     """Simulate EXPERIMENT, run the estimators, print our numbers beside the paper's.
 
     Each printout names the model repairs applied and every assumption made where the
@@ -24,12 +31,15 @@ def reproduce(experiment, plot_dir, seed):
     from guardid.reproduce import EXPERIMENTS
 
     module = EXPERIMENTS[experiment]
+    if exact_acceleration and experiment != "seed001-table1":
+        raise click.UsageError("--exact-acceleration applies to seed001-table1 only")
     if plot_dir is not None:
         from guardid.reproduce.plots import require_matplotlib
 
         require_matplotlib()
     t0 = time.perf_counter()
-    report = module.run(seed)
+    kwargs = {"exact_acceleration": True} if exact_acceleration else {}
+    report = module.run(seed, **kwargs)
     click.echo(report.text())
     if plot_dir is not None:
         for path in module.plot(report, plot_dir):

@@ -20,6 +20,17 @@ and a final clip to the largest double below 1 keep s strictly inside (-1, 1). N
 integrated in u = atanh(s) directly: a large implicit step in u overshoots through tanh and
 can bounce between the bounds.
 
+``integrator="euler"`` (an option for fair comparisons; the paper's integrator, DESIGN.md
+section 5): the explicit Euler step of the same ODE in s, per sample,
+    s += (dt/beta) (1 - s^2) * S A_k^T (y_k - A_k theta),
+with no fraction-to-boundary rule and no clip. Near an interior equilibrium s* it multiplies
+the error along an eigenvector of D S A_k^T A_k S (D = diag(1 - s*^2)) with eigenvalue mu by
+1 - (dt/beta) mu: stable only for (dt/beta) mu < 2. Once a component leaves (-1, 1), its
+1 - s^2 turns negative and the step pushes it further out: the run diverges; that is
+detected (non-finite or max |s| > ``blowup``) and recorded in ``diverged_`` /
+``diverged_at_`` (sample count); the offline run stops there. Per sample only (``fit_block``
+is ignored; offline, divergence is checked every 64 samples); not with windowed weights.
+
 Offline ``fit`` with ``fit_block`` = K > 1 merges K consecutive samples into one step of
 length K dt with G and S A^T e summed over the K samples (right-hand side time-averaged at
 the frozen state): a first-order approximation of the sequential per-sample steps whose
@@ -100,7 +111,9 @@ class Hopfield(Estimator):
     Parameters: ``theta_n`` nominal / initial estimate (p,) (default: centre of the box);
     ``bounds`` (lo, hi) arrays (p,), or ``half_widths`` (p,) around ``theta_n``; ``beta`` > 0
     gain (unit of y^2 times s; smaller = faster); ``dt`` sample period in s; ``fit_block``
-    samples merged per offline step (see module doc); ``history_every`` history stride.
+    samples merged per offline step (see module doc); ``history_every`` history stride;
+    ``integrator`` "implicit" (default, linearly implicit step) or "euler" (explicit Euler in
+    s, the paper's; ``blowup`` bounds max |s| before a run counts as diverged).
     Attributes: ``theta_`` (p,), ``s_`` (p,) in (-1, 1), ``scale_`` S (p,), ``center_`` (p,),
     ``n_samples_``, ``history_``, ``history_samples_``.
     """
@@ -120,7 +133,14 @@ class Hopfield(Estimator):
         history_every: int = 10,
         lam: float | None = None,
         info_floor=None,
+        integrator: str = "implicit",
+        blowup: float = 1e6,
     ):
+        if integrator not in ("implicit", "euler"):
+            raise ValueError(f"integrator must be 'implicit' or 'euler', not {integrator!r}")
+        if integrator == "euler" and lam is not None:
+            raise ValueError("integrator='euler' is per sample only (no windowed weights)")
+        self.integrator, self.blowup = integrator, float(blowup)
         if beta <= 0 or dt <= 0:
             raise ValueError("beta and dt must be > 0")
         if lam is not None and not 0.0 < lam <= 1.0:
@@ -160,6 +180,7 @@ class Hopfield(Estimator):
         self.s_ = self._s0.copy()
         self.theta_ = self.center_ + self.scale_ * self.s_
         self.n_samples_ = 0
+        self.diverged_, self.diverged_at_ = False, None
         if self.lam is not None:
             self.W_ = np.diag(1.0 / self.scale_**2)
             self.b_ = self.W_ @ self.theta_
@@ -233,6 +254,8 @@ class Hopfield(Estimator):
         """
         if self.lam is not None:
             return self._update_windowed(*as_sample(A_k, y_k))
+        if self.integrator == "euler":
+            return self._update_euler(*as_sample(A_k, y_k))
         ws = self._ws
         if (
             ws is None
@@ -300,6 +323,19 @@ class Hopfield(Estimator):
         self.n_samples_ += 1
         return self
 
+    def _update_euler(self, A_k, y_k):
+        """One explicit Euler step in s (module doc); no boundary rule, divergence recorded."""
+        S, s = self.scale_, self.s_
+        with np.errstate(over="ignore", invalid="ignore"):
+            e = y_k - A_k @ (self.center_ + S * s)
+            s = s + (self.dt / self.beta) * (1.0 - s * s) * (S * (A_k.T @ e))
+        self.s_ = s
+        self.theta_ = self.center_ + S * s
+        self.n_samples_ += 1
+        if not self.diverged_ and not np.max(np.abs(s)) < self.blowup:
+            self.diverged_, self.diverged_at_ = True, self.n_samples_
+        return self
+
     def _make_workspace(self, shape_A):
         """Work arrays of the n_out = 2 fast path for the current ``s_``, ``scale_``, ``center_``.
 
@@ -334,6 +370,30 @@ class Hopfield(Estimator):
         self.reset()
         N = A3.shape[0]
         k = max(self.history_every, 1)
+        if self.integrator == "euler":
+            hist, p_ = [], self.s_.size
+            S, c, s = self.scale_, self.center_, self.s_
+            g = self.dt / self.beta
+            SAT = A3.transpose(0, 2, 1) * S[:, None]  # S A_k^T (N, p, n)
+            e0 = y2 - A3 @ c  # y_k - A_k c (N, n)
+            B = A3 * S  # A_k S (N, n, p)
+            n_done = 0
+            with np.errstate(over="ignore", invalid="ignore"):
+                for i in range(N):
+                    s = s + g * (1.0 - s * s) * (SAT[i] @ (e0[i] - B[i] @ s))
+                    n_done = i + 1
+                    if n_done % k == 0:
+                        hist.append(s)
+                    if n_done % 64 == 0 and not np.max(np.abs(s)) < self.blowup:
+                        break
+            self.s_, self.theta_, self.n_samples_ = s, c + S * s, n_done
+            if not np.max(np.abs(s)) < self.blowup:
+                self.diverged_, self.diverged_at_ = True, n_done
+            self.history_ = (
+                self.center_ + self.scale_ * np.array(hist) if hist else np.empty((0, p_))
+            )
+            self.history_samples_ = checkpoints(self.n_samples_, k)
+            return self
         if self.lam is not None or (self.fit_block <= 1 and A3.shape[1] == 2):
             # windowed weights, or the online fast path: sample by sample
             hist = []

@@ -8,6 +8,7 @@ conditioning stage bridges by resampling.
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, field
 
@@ -132,7 +133,7 @@ def identify(
     highest_harmonic_hz: float | None = None,
     hopfield_passes: int = 1,
     hopfield_nominal=None,
-    hopfield_settle: bool = True,
+    hopfield_settle: bool = False,
     qd=None,
 ) -> Identification:
     """Identify the base parameters of ``description`` from one run (or several).
@@ -147,11 +148,13 @@ def identify(
     (:func:`stacked_rows`); the options used, cut-off resolved, are in the result.
     Hopfield starts from ``hopfield_nominal`` (b',) (default: the description's base values)
     in a box of +-100 % of it and runs ``hopfield_passes`` times over the rows, each pass
-    starting where the previous one ended (same box). With ``hopfield_settle`` the network
-    then settles with the whole log's weights (:meth:`Hopfield.settle`): with a fixed beta
-    the online estimate keeps fluctuating around the optimum by the noise, so the reported
-    offline value is the network's equilibrium on the log; the online pass's end value is
-    kept in ``results['hopfield'].settings['online_end']`` and its history for the plots.
+    starting where the previous one ended (same box). ``results['hopfield']`` is the
+    network's own estimate: its state at the end of the online passes (also in
+    ``settings['online_end']``), with its history for the plots. With ``hopfield_settle``
+    the network also settles with the whole log's weights (:meth:`Hopfield.settle`); that
+    equilibrium is the least-squares estimate inside the box (it equals LS to many digits
+    when LS lies inside), so it is reported separately as ``results['hopfield-eq']``,
+    never as the Hopfield estimate.
 
     Several runs: t_s, q_rad and current_a are lists (one array per run), conditioned
     separately and their rows stacked (:func:`stacked_rows`); voltage_v and ticks are then
@@ -200,7 +203,7 @@ def identify(
             est = run_hopfield(A, y, start, beta, dt, hopfield_passes)
             online_end = np.array(est.theta_)
             if hopfield_settle:
-                est.settle(A, y)
+                eq = copy.deepcopy(est).settle(A, y)
         elif method == "mlp":  # seed 001's network; inputs (q, q', q'') of the usable rows
             m = cond.mask
             est = MLP().fit(A, y, X=np.hstack([cond.q[m], cond.qd[m], cond.qdd[m]]))
@@ -214,6 +217,9 @@ def identify(
                 "online_end": online_end,
                 "settled": hopfield_settle,
             }
+            if hopfield_settle:  # labelled as what it is: the equilibrium, not the network's
+                results["hopfield-eq"] = _result("hopfield-eq", eq, A, y, cond.t[cond.mask])
+                results["hopfield-eq"].settings = {"equilibrium_of": "hopfield", "beta": beta}
     warnings = [
         f"{name}: relative standard deviation {r:.0f} % (poorly identifiable; "
         "a richer excitation or a longer run would help)"

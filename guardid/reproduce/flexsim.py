@@ -141,23 +141,34 @@ def measurements(run: FlexRun, noisy: bool, rng: np.random.Generator | None = No
     return A, y
 
 
-def hopfield(A, y, dt: float, beta: float) -> tuple[np.ndarray, np.ndarray]:
+def hopfield(A, y, dt: float, beta: float, integrator: str = "implicit", full: bool = False):
     """Exact per-sample Hopfield run (fit_block=1) from theta_n = (1, 2, 2.4).
 
-    Returns (theta_hat (N, 3) after each sample, samples (N,)); bounds from flexlink.yaml.
+    Returns (theta_hat (n, 3) after each sample, samples (n,)), with ``full`` also the sample
+    count at which an explicit-Euler run diverged (or None); bounds from flexlink.yaml.
     """
     model = build_model(load_robot("flexlink"))
     est = Hopfield(
-        model.nominal, bounds=model.bounds.T, beta=beta, dt=dt, fit_block=1, history_every=1
+        model.nominal,
+        bounds=model.bounds.T,
+        beta=beta,
+        dt=dt,
+        fit_block=1,
+        history_every=1,
+        integrator=integrator,
     )
     est.fit(A, y)
+    if full:
+        return est.history_, est.history_samples_, est.diverged_at_
     return est.history_, est.history_samples_
 
 
-def gradient(A, y, dt: float, eta: float):
-    """Explicit-Euler gradient run (eq. 4) from theta_n; returns (history (n, 3), diverged_at)."""
+def gradient(A, y, dt: float, eta: float, integrator: str = "euler"):
+    """Gradient run (eq. 4) from theta_n; returns (history (n, 3), diverged_at)."""
     model = build_model(load_robot("flexlink"))
-    est = Gradient(eta=eta, dt=dt, theta0=model.nominal, history_every=1, blowup=1e6)
+    est = Gradient(
+        eta=eta, dt=dt, theta0=model.nominal, history_every=1, blowup=1e6, integrator=integrator
+    )
     est.fit(A, y)
     return est.history_, est.diverged_at_
 
@@ -172,7 +183,8 @@ THRESHOLD = 1e-2
 
 def sq_error(hist, theta) -> np.ndarray:
     """||theta_hat - theta||^2 per sample (N,) [mixed units, as the paper's Fig. 3]."""
-    return np.sum((hist - theta) ** 2, axis=1)
+    with np.errstate(over="ignore", invalid="ignore"):  # diverged runs
+        return np.sum((hist - theta) ** 2, axis=1)
 
 
 def noise_assumptions() -> list[str]:

@@ -38,7 +38,6 @@ def _save(plt, fig, out_dir, name) -> str:
 def seed000_step(rep, out_dir) -> list[str]:
     """Figs. 3 (squared error), 4 (alpha), 5 (gamma) and the gradient comparison."""
     from guardid.reproduce import flexsim as fs
-    from guardid.reproduce.seed000_step import GRAD_ETAS
 
     plt = require_matplotlib()
     s = rep.series
@@ -67,7 +66,7 @@ def seed000_step(rep, out_dir) -> list[str]:
         paths.append(_save(plt, fig, out_dir, f"seed000_fig{fig_no}_{sym}.png"))
     fig, ax = plt.subplots(figsize=(7, 4))
     ax.semilogy(tp, fs.sq_error(s[key], s["theta"]), label=f"Hopfield beta={fs.BETA:g}")
-    for eta in GRAD_ETAS:
+    for eta in sorted(float(k[5:]) for k in s if k.startswith("grad_")):
         h = s[f"grad_{eta:g}"]
         n = h.shape[0]
         ax.semilogy(tp[:n], fs.sq_error(h, s["theta"][:n]), lw=0.8, label=f"gradient eta={eta:g}")

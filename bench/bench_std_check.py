@@ -1,0 +1,110 @@
+"""Monte Carlo check of the reported standard deviations (issue 19, deliverable 2).
+
+For each excitation, one trajectory (``guardid excite`` with the excitation's options), then
+per seed a capture through ``sim://guard?seed=N`` (lock-step, noise on) and ``guardid identify
+--method M -o params.yaml`` with its defaults, all through the command line. The truth is the
+robot YAML the simulator runs (its base parameters). Per method and base parameter, over the
+seeds: the spread of the estimates divided by the mean reported std (1 = honest), the bias
+(mean estimate - truth) in units of the mean reported std, and the share of seeds whose truth
+lies within 3 reported std; then the share over all (seed, parameter) pairs. The statistics
+are computed here with numpy from the params.yaml files, not by guardid.
+
+    python bench/bench_std_check.py [--seeds 20] [--duration 60] [--methods ls,wls]
+                                    [--excitations default,tracking] [--keep DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from guardid.dynamics import build_model
+from guardid.robot import load_robot
+
+EXCITATIONS = {
+    "default": [],
+    "tracking": ["--base-freq", "0.2", "--harmonics", "3"],
+}
+
+
+def _guardid(*args) -> None:
+    res = subprocess.run([sys.executable, "-m", "guardid", *args], capture_output=True, text=True)
+    if res.returncode != 0:
+        raise SystemExit(f"guardid {' '.join(args)} failed: {res.stderr.strip()[-400:]}")
+
+
+def truth_values() -> dict[str, float]:
+    """Base parameter name -> value of the robot YAML the simulator runs."""
+    model = build_model(load_robot("guard"))
+    return dict(zip(model.base.names, model.base.values(model.params), strict=True))
+
+
+def collect(excitation: str, seeds, duration: float, methods: str, work: Path):
+    """Per method: names (p,), estimates (S, p), stds (S, p) over the seeds."""
+    traj = work / f"traj_{excitation}.yaml"
+    _guardid("excite", "--robot", "guard", "-o", str(traj), *EXCITATIONS[excitation])
+    out: dict[str, dict] = {}
+    for seed in seeds:
+        log = work / f"{excitation}_{seed}.csv"
+        params = work / f"{excitation}_{seed}.yaml"
+        port = f"sim://guard?seed={seed}"
+        _guardid("capture", "--trajectory", str(traj), "--duration", f"{duration:g}",
+                 "--port", port, "--quiet", "--force", "-o", str(log))  # fmt: skip
+        params.unlink(missing_ok=True)  # identify does not replace a file
+        _guardid("identify", str(log), "--method", methods, "-o", str(params))
+        data = yaml.safe_load(params.read_text())
+        names = [b["name"] for b in data["base_parameters"]]
+        for m, entry in data["methods"].items():
+            if "std" not in entry:
+                continue
+            d = out.setdefault(m, {"names": names, "theta": [], "std": []})
+            d["theta"].append(entry["values"])
+            d["std"].append(entry["std"])
+        print(f"  {excitation} seed {seed} done", flush=True)
+    return {m: (d["names"], np.array(d["theta"]), np.array(d["std"])) for m, d in out.items()}
+
+
+def statistics(names, theta, std, truth):
+    """Rows (name, truth, spread/std, bias in std, share within 3 std) and the overall share."""
+    tv = np.array([truth[n] for n in names])
+    mean_std = std.mean(axis=0)
+    spread = theta.std(axis=0, ddof=1) / mean_std
+    bias = (theta.mean(axis=0) - tv) / mean_std
+    inside = np.abs(theta - tv) <= 3.0 * std
+    rows = [(n, tv[i], spread[i], bias[i], inside[:, i].mean()) for i, n in enumerate(names)]
+    return rows, float(inside.mean())
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=20, help="seeds 0..N-1")
+    ap.add_argument("--duration", type=float, default=60.0, help="capture length [s]")
+    ap.add_argument("--methods", default="ls,wls", help="guardid identify --method")
+    ap.add_argument("--excitations", default="default,tracking", help="default,tracking")
+    ap.add_argument("--keep", default=None, help="keep logs and params here")
+    a = ap.parse_args()
+    truth = truth_values()
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(a.keep) if a.keep else Path(tmp)
+        work.mkdir(parents=True, exist_ok=True)
+        for exc in a.excitations.split(","):
+            results = collect(exc, range(a.seeds), a.duration, a.methods, work)
+            for m, (names, theta, std) in results.items():
+                rows, share = statistics(names, theta, std, truth)
+                print(f"\n{exc} excitation, {m.upper()}, {theta.shape[0]} seeds,"
+                      f" {a.duration:g} s captures (sim://guard?seed=N, lock-step):")  # fmt: skip
+                print(f"{'param':8s} {'truth':>9s} {'spread/std':>10s} {'bias/std':>9s}"
+                      f" {'in 3 std':>9s}")  # fmt: skip
+                for n, tv, sp, b, w in rows:
+                    print(f"{n:8s} {tv:9.4g} {sp:10.2f} {b:+9.2f} {100 * w:8.0f} %")
+                print(f"truth within 3 std in {100 * share:.1f} % of (seed, parameter) pairs")
+
+
+if __name__ == "__main__":
+    main()
