@@ -61,3 +61,20 @@ def test_every_command_is_listed_in_help():
     assert done.returncode == 0
     for name, *_ in COMMANDS:
         assert f"  {name} " in done.stdout
+
+
+def test_a_missing_log_is_one_line_without_heavy_imports(tmp_path):
+    missing = tmp_path / "nope.csv"
+    loaded = _modules_after(
+        "from guardid.cli import main\n"
+        f"try:\n    main(['identify', {str(missing)!r}], prog_name='guardid')\n"
+        "except SystemExit:\n    pass"
+    )
+    numeric = {"numpy", "scipy", "matplotlib"}  # the command module itself may load yaml
+    assert not loaded & numeric, loaded & numeric
+    done = subprocess.run(
+        [sys.executable, "-m", "guardid", "identify", str(missing)], capture_output=True, text=True
+    )
+    assert done.returncode == 2
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("guardid: error:") and "nope.csv" in lines[0]

@@ -49,8 +49,9 @@ def test_seed001_table1_within_one_percent(table1):
     assert np.all(s["pct_error"]["RLS"] < 1.0), s["pct_error"]["RLS"]  # RLS(lam=1) = LS
     for name in ("Hopfield", "gradient"):
         assert np.all(s["pct_error"][name] < 10.0), (name, s["pct_error"][name])
-    # the filter is the conditioning's choice for a known excitation: 5 x 1.7 Hz
-    assert s["cutoff_hz"] == pytest.approx(8.5)
+    # the filter is the conditioning's choice for a known excitation: 8 x 1.7 Hz (the
+    # factor of identify, guardid.conditioning.bandwidth.HARMONIC_FACTOR)
+    assert s["cutoff_hz"] == pytest.approx(13.6)
     assert s["noise"] == {"q": seed001_table1.NOISE_Q_RAD, "tau": seed001_table1.NOISE_TAU}
     # the paper's worst errors, as printed in its Table 1 (actual minus estimate)
     assert s["paper_pct_error"]["LS"].max() == pytest.approx(18.24, abs=0.01)
@@ -61,7 +62,7 @@ def test_seed001_table1_within_one_percent(table1):
         "paper LS",
         "Hopfield",
         "quantised",
-        "Butterworth at 8.5 Hz",
+        "Butterworth at 13.6 Hz",
         "central differences",
         "PID",
         "wall time",

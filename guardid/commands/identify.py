@@ -9,12 +9,6 @@ import click
 import yaml
 
 from guardid.errors import ConfigError, GuardidError, UntrustedResult
-from guardid.identify.checks import (
-    check_cutoff,
-    check_distinct,
-    check_log_robot,
-    check_params_robot,
-)
 
 
 def _robot_for(run, robot_opt):
@@ -60,6 +54,8 @@ def _load(log, robot_opt, columns, sample_period, mat_var, mat_columns):
         run = load_run(log)
         description = given or _robot_for(run, robot_opt)
         where = f"--robot {robot_opt}" if isinstance(robot_opt, (str, Path)) else "its header"
+        from guardid.identify.checks import check_log_robot
+
         check_log_robot(run, description, "the params file's robot" if given else where)
         return run, description
     from guardid.identify.foreign import parse_mapping
@@ -88,6 +84,8 @@ def _load_all(logs, robot_opt, foreign):
             raise ConfigError(f"{log}: robot {desc.name}, but {logs[0]} is {description.name}")
         runs.append(run)
         description = description or desc
+    from guardid.identify.checks import check_distinct
+
     check_distinct(runs)
     return runs, description
 
@@ -154,7 +152,7 @@ def _arrays(runs):
 
 
 @click.command()
-@click.argument("log", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("log", nargs=-1, required=True, type=click.Path(dir_okay=False, exists=True))
 @click.option("--robot", default=None, help="Shipped robot or YAML path [default: the log's].")
 @click.option(
     "--method",
@@ -218,6 +216,8 @@ def identify(
     status = Status()
     status.stage("reading")
     logs, (runs, description) = log, _load_all(log, robot, foreign)
+    from guardid.identify.checks import check_cutoff
+
     check_cutoff(cutoff, runs)
     run, log = runs[0], logs[0]
     if len({r.torque for r in runs}) > 1:
@@ -327,7 +327,7 @@ def _cross_validate(logs, runs, description, methods, options, current_units, be
 
 
 @click.command()
-@click.argument("log", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("log", nargs=-1, required=True, type=click.Path(dir_okay=False, exists=True))
 @click.option(
     "--params",
     "params_paths",
@@ -377,7 +377,11 @@ def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, **forei
     spec = robot or (v.stored_robot(*first) if first else None)
     runs, description = _load_all(log, spec, foreign)
     if first:
+        from guardid.identify.checks import check_params_robot
+
         check_params_robot(first[0], first[1], description, robot)
+    from guardid.identify.checks import check_cutoff
+
     check_cutoff(cutoff, runs)
     options = v.stored_conditioning(*first) if first else None
     options = (options or v.ConditioningOptions()).with_(

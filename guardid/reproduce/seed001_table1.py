@@ -12,7 +12,7 @@ white Gaussian noise (NOISE_Q_RAD) and are quantised like an encoder (RESOLUTION
 torques get white Gaussian noise (NOISE_TAU); q', q'' and the filtered torque then come from
 guardid's own offline conditioning (:func:`guardid.conditioning.condition` with its
 defaults for a known excitation, as ``guardid identify`` uses them when the log names its
-trajectory: cut-off 5 x the highest frequency of the desired motion, zero-phase
+trajectory: cut-off 8 x the highest frequency of the desired motion, zero-phase
 Butterworth on q and tau, central differences, edge and low-speed rows masked) on the 1 ms
 grid (no decimation, so the online estimators keep their 1 ms step).
 ``exact_acceleration=True`` is the easy variant: the exact q, q', q'' and tau plus small
