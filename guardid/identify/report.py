@@ -133,17 +133,23 @@ def robot_mapping(description) -> dict | None:
         return None
 
 
-def read_params(path) -> dict:
-    """Load params.yaml written by ``guardid identify`` (one-line errors naming the key)."""
+def read_yaml(path):
+    """A YAML file's content; one-line errors naming the file (unreadable, not UTF-8 text,
+    invalid YAML)."""
     try:
         with open(path, encoding="utf-8") as f:
-            data = yaml.safe_load(f)
+            return yaml.safe_load(f)
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read: {exc.strerror}") from None
     except UnicodeDecodeError as exc:
         raise ConfigError(f"{path}: byte {exc.start}: not UTF-8 text") from None
     except yaml.YAMLError as exc:
         raise ConfigError(f"{path}: invalid YAML: {str(exc).splitlines()[0]}") from None
+
+
+def read_params(path) -> dict:
+    """Load params.yaml written by ``guardid identify`` (one-line errors naming the key)."""
+    data = read_yaml(path)
     if not isinstance(data, dict) or data.get("guardid-params") != 1:
         raise ConfigError(f"{path}: guardid-params: not a params file written by guardid identify")
     for key in ("robot", "base_parameters", "methods"):
