@@ -29,6 +29,9 @@ REFERENCE = (
     Path(__file__).resolve().parents[1] / "docs" / "examples" / "dfki_published.reference.yaml"
 )
 COLUMNS = "time=time,q1=pos_meas1,q2=pos_meas2,tau1=tau_meas1,tau2=tau_meas2"
+pytestmark = pytest.mark.skipif(
+    not DATA.is_dir(), reason=f"real data not found at {DATA} (shared/realdata beside the repo)"
+)
 G, L1, GR = 9.81, 0.3, 6.0
 DT, FC = 0.002, 5.0  # s, Hz: the evaluator's (and the plain fit's) conditioning
 
