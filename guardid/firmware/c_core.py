@@ -76,20 +76,28 @@ def build_library() -> Path:
         raise FirmwareBuildError(
             "firmware=c: no C compiler found (install gcc or set CC), or use firmware=py"
         )
-    lib = library_path(cc)
+    cmd = [cc, *CFLAGS, f"-I{FIRMWARE_DIR}", f"-I{FIRMWARE_DIR / 'core'}"]
+    cmd += [str(FIRMWARE_DIR / s) for s in SOURCES]
+    return build_cached(library_path(cc), lambda out: [*cmd, "-o", out],
+                        "firmware=c: building the C core")  # fmt: skip
+
+
+def build_cached(lib: Path, command, what: str) -> Path:
+    """``lib`` [a cached shared library], built once by ``command(out)`` (the compiler's
+    argv writing to ``out``) into a temporary file renamed into place: atomic, so that
+    concurrent builders agree. A failed build is a FirmwareBuildError "``what`` failed:
+    <the compiler's first line>"."""
     if lib.is_file():
         return lib
     lib.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(suffix=".so", dir=lib.parent)
     os.close(fd)
     try:
-        cmd = [cc, *CFLAGS, f"-I{FIRMWARE_DIR}", f"-I{FIRMWARE_DIR / 'core'}"]
-        cmd += [str(FIRMWARE_DIR / s) for s in SOURCES] + ["-o", tmp]
-        res = subprocess.run(cmd, capture_output=True, text=True)
+        res = subprocess.run(command(tmp), capture_output=True, text=True)
         if res.returncode != 0:
-            first = (res.stderr.strip().splitlines() or ["(no output)"])[0]
-            raise FirmwareBuildError(f"firmware=c: building the C core failed: {first}")
-        os.replace(tmp, lib)  # atomic: concurrent builders agree on the result
+            first = ((res.stderr or res.stdout).strip().splitlines() or ["(no output)"])[0]
+            raise FirmwareBuildError(f"{what} failed: {first}")
+        os.replace(tmp, lib)
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)

@@ -15,7 +15,13 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from guardid.firmware.c_core import FIRMWARE_DIR, FirmwareBuildError, cache_dir, find_compiler
+from guardid.firmware.c_core import (
+    FIRMWARE_DIR,
+    FirmwareBuildError,
+    build_cached,
+    cache_dir,
+    find_compiler,
+)
 
 MCUS = ("atmega328p", "atmega2560")
 AVR_DIR = FIRMWARE_DIR / "avr"
@@ -99,18 +105,8 @@ def build_shim() -> Path:
     cc = find_compiler()
     tag = _digest([SHIM], " ".join((os.path.realpath(cc), *SHIM_CFLAGS, *SHIM_LIBS)))
     lib = cache_dir() / f"libguard_avr_sim-{tag}.so"
-    if lib.is_file():
-        return lib
-    lib.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".so", dir=lib.parent)
-    os.close(fd)
-    try:
-        _run([cc, *SHIM_CFLAGS, str(SHIM), "-o", tmp, *SHIM_LIBS], "building the simavr shim")
-        os.replace(tmp, lib)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return lib
+    return build_cached(lib, lambda out: [cc, *SHIM_CFLAGS, str(SHIM), "-o", out, *SHIM_LIBS],
+                        "firmware=avr: building the simavr shim")  # fmt: skip
 
 
 def ram_symbols(elf: Path, names) -> dict[str, int]:
