@@ -1,7 +1,10 @@
 """Monte Carlo check of the reported standard deviations (issue 19, deliverable 2).
 
 For each excitation, one trajectory (``guardid excite`` with the excitation's options), then
-per seed a capture through ``sim://guard?seed=N`` (lock-step, noise on) and ``guardid identify
+per seed a capture through ``sim://guard?seed=N&phase=1`` (lock-step, noise on; ``phase=1``:
+the seed also places the start pose within an encoder count, as on a real robot, so that the
+seeds differ in quantisation and motion and not only in the current sensor's noise;
+``--fixed-phase`` leaves it out) and ``guardid identify
 --method M -o params.yaml`` with its defaults, all through the command line. The truth is the
 robot YAML the simulator runs (its base parameters). Per method and base parameter, over the
 seeds: the spread of the estimates divided by the mean reported std (1 = honest), the bias
@@ -10,7 +13,7 @@ lies within 3 reported std; then the share over all (seed, parameter) pairs. The
 are computed here with numpy from the params.yaml files, not by guardid.
 
     python bench/bench_std_check.py [--seeds 20] [--duration 60] [--methods ls,wls]
-                                    [--excitations default,tracking] [--keep DIR]
+                                    [--excitations default,tracking] [--keep DIR] [--fixed-phase]
 """
 
 from __future__ import annotations
@@ -45,15 +48,15 @@ def truth_values() -> dict[str, float]:
     return dict(zip(model.base.names, model.base.values(model.params), strict=True))
 
 
-def collect(excitation: str, seeds, duration: float, methods: str, work: Path):
-    """Per method: names (p,), estimates (S, p), stds (S, p) over the seeds."""
+def collect(excitation: str, seeds, duration: float, methods: str, work: Path, phase=True):
+    """Per method: names (p,), estimates (S, p), stds (S, p) or None over the seeds."""
     traj = work / f"traj_{excitation}.yaml"
     _guardid("excite", "--robot", "guard", "-o", str(traj), *EXCITATIONS[excitation])
     out: dict[str, dict] = {}
     for seed in seeds:
         log = work / f"{excitation}_{seed}.csv"
         params = work / f"{excitation}_{seed}.yaml"
-        port = f"sim://guard?seed={seed}"
+        port = f"sim://guard?seed={seed}" + ("&phase=1" if phase else "")
         _guardid("capture", "--trajectory", str(traj), "--duration", f"{duration:g}",
                  "--port", port, "--quiet", "--force", "-o", str(log))  # fmt: skip
         params.unlink(missing_ok=True)  # identify does not replace a file
@@ -61,13 +64,34 @@ def collect(excitation: str, seeds, duration: float, methods: str, work: Path):
         data = yaml.safe_load(params.read_text())
         names = [b["name"] for b in data["base_parameters"]]
         for m, entry in data["methods"].items():
-            if "std" not in entry:
-                continue
             d = out.setdefault(m, {"names": names, "theta": [], "std": []})
             d["theta"].append(entry["values"])
-            d["std"].append(entry["std"])
+            d["std"].append(entry.get("std"))
         print(f"  {excitation} seed {seed} done", flush=True)
-    return {m: (d["names"], np.array(d["theta"]), np.array(d["std"])) for m, d in out.items()}
+    return {
+        m: (d["names"], np.array(d["theta"]), None if None in d["std"] else np.array(d["std"]))
+        for m, d in out.items()
+    }
+
+
+def accuracy(results, truth) -> list[str]:
+    """Lines: per base parameter and method, the median and worst |estimate - truth| over
+    the seeds, in % of the truth (absolute, in the parameter's unit, where the truth is 0)."""
+    methods = list(results)
+    names = results[methods[0]][0]
+    lines = [f"{'param':8s} {'truth':>9s}" + "".join(f" {m.upper() + ' med/worst':>22s}"
+                                                    for m in methods)]  # fmt: skip
+    for i, n in enumerate(names):
+        tv = truth[n]
+        cells = []
+        for m in methods:
+            err = np.abs(results[m][1][:, i] - tv)
+            if tv != 0:
+                err = 100.0 * err / abs(tv)
+            unit = " %" if tv != 0 else "  "
+            cells.append(f" {np.median(err):9.3g}/{err.max():9.3g}{unit}")
+        lines.append(f"{n:8s} {tv:9.4g}" + "".join(cells))
+    return lines
 
 
 def statistics(names, theta, std, truth):
@@ -88,22 +112,28 @@ def main() -> None:
     ap.add_argument("--methods", default="ls,wls", help="guardid identify --method")
     ap.add_argument("--excitations", default="default,tracking", help="default,tracking")
     ap.add_argument("--keep", default=None, help="keep logs and params here")
+    ap.add_argument("--fixed-phase", action="store_true", help="every seed starts on the grid")
     a = ap.parse_args()
     truth = truth_values()
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(a.keep) if a.keep else Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
         for exc in a.excitations.split(","):
-            results = collect(exc, range(a.seeds), a.duration, a.methods, work)
+            results = collect(exc, range(a.seeds), a.duration, a.methods, work, not a.fixed_phase)
             for m, (names, theta, std) in results.items():
+                if std is None:
+                    continue
                 rows, share = statistics(names, theta, std, truth)
                 print(f"\n{exc} excitation, {m.upper()}, {theta.shape[0]} seeds,"
-                      f" {a.duration:g} s captures (sim://guard?seed=N, lock-step):")  # fmt: skip
+                      f" {a.duration:g} s captures (sim://guard?seed=N"
+                      f"{'' if a.fixed_phase else '&phase=1'}, lock-step):")  # fmt: skip
                 print(f"{'param':8s} {'truth':>9s} {'spread/std':>10s} {'bias/std':>9s}"
                       f" {'in 3 std':>9s}")  # fmt: skip
                 for n, tv, sp, b, w in rows:
                     print(f"{n:8s} {tv:9.4g} {sp:10.2f} {b:+9.2f} {100 * w:8.0f} %")
                 print(f"truth within 3 std in {100 * share:.1f} % of (seed, parameter) pairs")
+            print(f"\n{exc} excitation, |estimate - truth| over {a.seeds} seeds, median/worst:")
+            print("\n".join(accuracy(results, truth)))
 
 
 if __name__ == "__main__":

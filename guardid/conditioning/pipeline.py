@@ -17,7 +17,11 @@ from guardid.conditioning.filters import (
     uniform_grid,
     zero_phase_lowpass,
 )
-from guardid.conditioning.stiction import default_stiction_threshold, stiction_mask
+from guardid.conditioning.stiction import (
+    at_position_limit,
+    default_stiction_threshold,
+    stiction_mask,
+)
 from guardid.conditioning.units import current_to_torque
 
 
@@ -70,6 +74,8 @@ def condition(
     stiction_guard_s: float = 0.0,
     flat_is_stuck: bool = False,
     qd_measured=None,
+    position_limits=None,
+    stop_guard_s: float = 0.0,
 ) -> Conditioned:
     """Condition a log for identification: filter, differentiate, align, decimate, mask.
 
@@ -112,6 +118,11 @@ def condition(
     flat_is_stuck : bool
         Also flag samples whose raw position equals the previous (or next) one (no encoder
         count in a period: the joint is held or reverses). Only used on uniform time stamps.
+    position_limits : array_like (n, 2), optional
+        Joint position limits [rad | m] (NaN = none). Samples at (or beyond) a limit rest
+        against a hard stop (:func:`~guardid.conditioning.stiction.at_position_limit`): the
+        contact force, and the impact on arrival, are not in the model. They are masked, and
+        so are the rows within ``stop_guard_s`` [s] of them.
 
     The same zero-phase low-pass is applied to positions and efforts (parallel
     filtering), so both sides of tau = Y(q, qd, qdd) theta see the same filter; q, qd, qdd
@@ -175,6 +186,16 @@ def condition(
     n_flagged, n_total = int(stuck.sum()), len(stuck)
     guard = int(round(float(stiction_guard_s) / dt))
     near = _dilate(stuck, guard) if guard > 0 else stuck
+    at_stop = near_stop = np.zeros(len(stuck), dtype=bool)
+    if position_limits is not None:
+        at_stop = at_position_limit(q, position_limits)  # raw positions on the grid
+        stop_guard = int(round(float(stop_guard_s) / dt))
+        near_stop = _dilate(at_stop, stop_guard) if stop_guard > 0 else at_stop
+        if at_stop.any():
+            notes.append(
+                f"{int(at_stop.sum())} samples at a position limit (hard stop)"
+                + (f", rows within {stop_guard * dt:.3g} s of them masked" if stop_guard else "")
+            )
     edge = 1.0 / cutoff_hz if edge_s is None else float(edge_s)
     inside = (grid >= grid[0] + edge) & (grid <= grid[-1] - edge)
     k = decimation_factor(fs, cutoff_hz) if decimate is None else int(decimate)
@@ -183,6 +204,7 @@ def condition(
     sl = slice(0, None, k)
     grid, qf, qd, qdd, tau, raw = grid[sl], qf[sl], qd[sl], qdd[sl], tau[sl], raw[sl]
     stuck, near, inside = stuck[sl], near[sl], inside[sl]
+    at_stop, near_stop = at_stop[sl], near_stop[sl]
     how = " or with no encoder count" if flat is not None else ""
     notes.append(
         f"stiction threshold {np.array2string(threshold, precision=4)} rad/s{how}: "
@@ -195,7 +217,7 @@ def condition(
         qd,
         qdd,
         tau,
-        inside & ~near,
+        inside & ~near & ~near_stop,
         stuck,
         np.array(threshold),
         float(cutoff_hz),
@@ -208,6 +230,7 @@ def condition(
             "at the ends (filter transients)": int((~inside).sum()),
             "near zero velocity": int((inside & stuck).sum()),
             "next to a near-zero-velocity sample": int((inside & near & ~stuck).sum()),
+            "at or next to a hard stop": int((inside & ~near & near_stop).sum()),
         },
     )
 

@@ -65,6 +65,12 @@ class _Command(click.Command):
     help="With --firmware avr: the simulated MCU [default: atmega328p].",
 )
 @click.option("--upstream", is_flag=True, help="Also corrupt host->device bytes.")
+@click.option(
+    "--phase",
+    is_flag=True,
+    help="Start each joint at a seeded random point within one encoder count (as a real "
+    "robot, zeroed where it rests; then seeds differ in quantisation and motion too).",
+)
 @_fault_options
 @click.option(
     "--idle-ms",
@@ -80,7 +86,18 @@ class _Command(click.Command):
 )
 @click.option("--device", "device_name", default=None, hidden=True, envvar=DEVICE_ENV)
 def fake_port(
-    robot, seed, pacing, noise, firmware, mcu, upstream, idle_ms, settle_ms, device_name, **faults
+    robot,
+    seed,
+    pacing,
+    noise,
+    firmware,
+    mcu,
+    upstream,
+    phase,
+    idle_ms,
+    settle_ms,
+    device_name,
+    **faults,
 ):
     """Serve the emulated robot on a pseudo-terminal until SIGINT/SIGTERM.
 
@@ -88,6 +105,7 @@ def fake_port(
     """
     raw = {"seed": seed, "pacing": pacing, "noise": "1" if noise else "0", "firmware": firmware}
     raw["upstream"] = "1" if upstream else "0"
+    raw["phase"] = "1" if phase else "0"
     if mcu is not None:
         raw["mcu"] = mcu
     raw.update({k: v for k, v in faults.items() if v is not None})

@@ -2,7 +2,8 @@
 
 ``sim://<robot name or YAML path>?seed=1&pacing=lockstep|realtime|<factor>&noise=1|0
 &payload_time=30&payload_mass=1.0&payload_com=0.12,0.02,0&drop=1e-4&flip=1e-5
-&latency_ms=16&disconnect_s=40&firmware=py|c|avr&mcu=atmega328p|atmega2560&upstream=0|1``
+&latency_ms=16&disconnect_s=40&firmware=py|c|avr&mcu=atmega328p|atmega2560&upstream=0|1
+&phase=0|1``
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ class SimOptions:
     payload_com: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [m]
     firmware: str = "py"
     mcu: str = "atmega328p"  # firmware=avr: the simulated microcontroller
+    phase: bool = False  # start each joint at a seeded random point within one encoder count
     faults: FaultConfig = field(default_factory=FaultConfig)
 
     @property
@@ -112,6 +114,7 @@ _PARSERS: dict[str, Callable[[str], object]] = {
     "firmware": _firmware,
     "mcu": _mcu,
     "upstream": _bool,
+    "phase": _bool,
 }
 OPTION_NAMES = tuple(_PARSERS)
 

@@ -47,6 +47,21 @@ from guardid.identify.untrusted import trust_problems
 
 METHODS = ("ls", "wls", "bls", "rls", "hopfield", "gradient", "mlp")
 POOR_REL_STD_PCT = 10.0  #: warn when a parameter's relative standard deviation exceeds this
+REFERENCE_METHODS = ("wls", "ls")
+"""The method whose estimate and std a report's verdict uses: the first of these that ran.
+WLS, because its std matches the spread of its estimates over seeds on the guard robot's
+closed loop (``bench/bench_std_check.py``: spread / std 0.82-1.21 on the default and the
+tracking excitation, 20 seeds), where LS's pooled noise level makes the pan parameters'
+std up to 1.5x too large and the tilt's up to 1.5x too small (its two joints' residuals
+differ by a factor of several)."""
+
+
+def reference_method(results) -> str | None:
+    """Name of the method the verdict uses (:data:`REFERENCE_METHODS`, then any with std)."""
+    for m in REFERENCE_METHODS:
+        if m in results and results[m].std is not None:
+            return m
+    return next((m for m, r in results.items() if r.std is not None), None)
 
 
 @dataclass

@@ -12,18 +12,35 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from guardid.conditioning import condition
-from guardid.conditioning.filters import decimation_factor, zero_phase_lowpass
+from guardid.conditioning.filters import DEFAULT_ORDER, decimation_factor, zero_phase_lowpass
 from guardid.conditioning.options import ConditioningOptions
 from guardid.conditioning.parallel import parallel_filter
+from guardid.conditioning.stiction import guard_periods
 from guardid.dynamics import build_model
 from guardid.errors import GuardidError
 from guardid.identify.cutoff import CutoffChoice, choose_cutoff_cv
 
-STICTION_GUARD_PERIODS = 0.6
-"""guardid logs: rows within this many cut-off periods of a stuck / reversing sample are
-dropped [-] (stick/slip of the PID-tracked joints smeared by the low-pass)."""
-MOST_ROWS_DROPPED = 0.5
-"""Warn when fewer than this fraction of the conditioned samples are usable [-]."""
+STICTION_GUARD_SHARE = 0.95
+"""guardid logs: rows closer to a stuck / reversing sample than the span that holds this
+share of the low-pass's impulse response are dropped (stick/slip of the PID-tracked joints
+smeared by the filter; :func:`~guardid.conditioning.stiction.guard_periods`: 1.04 cut-off
+periods at order 4). Measured on the guard robot (``bench/bench_std_check.py``, 20 seeds):
+0.6 periods left the pan's Fv1 and Fc1 biased by 1.3-1.4 std on the default excitation;
+this guard, 0.4-0.5 std, at the price of a third of the rows (std about 1.3x larger). The
+Coulomb columns low-passed like the effort with a narrower guard did worse there."""
+STOP_GUARD_SHARE = 0.99
+"""Rows closer to a sample at a joint's position limit (a hard stop: contact force and
+impact, not in the model) than the span holding this share are dropped (about 1.75 cut-off
+periods at order 4). Applies to every log whose robot has position limits."""
+STICTION_GUARD_PERIODS = guard_periods(DEFAULT_ORDER, STICTION_GUARD_SHARE)
+"""The stiction guard at the default order [cut-off periods] (for callers)."""
+MIN_ROWS_PER_PARAMETER = 10
+"""A cut-off candidate is eligible only if its conditioning keeps more rows than this many
+per identified parameter (at its own decimation) [-]."""
+MOST_ROWS_DROPPED = 0.25
+"""Warn when fewer than this fraction of the conditioned samples are usable [-] (a robot with
+stick/slip loses more than half of them to the stiction guard as a matter of course: the
+guard robot's optimised excitation keeps 38 %)."""
 POWER_BEYOND_CUTOFF = 0.1
 """Warn when the low-pass removes more than this fraction of the effort's power [-]."""
 
@@ -85,8 +102,14 @@ def condition_kwargs(options, fs_hz, cutoff_hz, effort_is_torque, description) -
         kw["align_period_mean"] = False
     guard = o.stiction_guard_s
     if guard is None:
-        guard = 0.0 if effort_is_torque else STICTION_GUARD_PERIODS / cutoff_hz
+        guard = (
+            0.0 if effort_is_torque else guard_periods(o.order, STICTION_GUARD_SHARE) / cutoff_hz
+        )
     kw["stiction_guard_s"] = guard
+    limits = position_limits(description)
+    if limits is not None:
+        kw["position_limits"] = limits
+        kw["stop_guard_s"] = guard_periods(o.order, STOP_GUARD_SHARE) / cutoff_hz
     kw["flat_is_stuck"] = (not effort_is_torque) if o.flat_is_stuck is None else o.flat_is_stuck
     if o.decimate is not None:
         kw["decimate"] = o.decimate
@@ -101,6 +124,17 @@ def condition_kwargs(options, fs_hz, cutoff_hz, effort_is_torque, description) -
     else:  # smooth friction holds through zero velocity: keep those joints' rows
         kw["stiction_threshold"] = np.where(_smooth_joints(description), 0.0, np.nan)
     return kw
+
+
+def position_limits(description) -> np.ndarray | None:
+    """(n, 2) joint position limits [rad | m] of ``description`` (NaN where none), or None
+    when no joint has one."""
+    rows = []
+    for j in description.joints:
+        pos = j.limits.position if j.limits is not None else None
+        rows.append((np.nan, np.nan) if pos is None else (float(pos[0]), float(pos[1])))
+    out = np.array(rows, dtype=float)
+    return None if np.all(np.isnan(out)) else out
 
 
 def _gain(description, in_current_units, effort_is_torque):
@@ -147,7 +181,7 @@ def identification_rows(
 
 
 def _condition_run(run, description, options, cutoff_hz, in_current_units, effort_is_torque,
-                   model, free, friction_filter=False):  # fmt: skip
+                   model, free, friction_filter=False, fallback=True):  # fmt: skip
     """One run (t, q, effort[, qd]) conditioned under ``options`` at ``cutoff_hz`` [Hz]:
     (conditioned signals, A (M, n, b'), y (M, n), y_raw (M, n), A_plain (M, n, b')) on every
     conditioned (decimated) sample; the usable rows are ``cond.mask``.
@@ -158,7 +192,9 @@ def _condition_run(run, description, options, cutoff_hz, in_current_units, effor
     cut-off period, and so does the column then (parallel filtering of the one strongly
     nonlinear term). ``A_plain`` is the regressor without that (the model's prediction).
     Falls back to no stiction guard when the guard would leave too few rows (3 per
-    identified parameter; said in the notes).
+    identified parameter; said in the notes), unless ``fallback`` is False (the cut-off's
+    cross-validation: a candidate that keeps too few rows with the guard is not eligible,
+    rather than scored on rows the friction model does not hold on).
     """
     t, q, effort, *rest = run
     t = np.asarray(t, dtype=float)
@@ -168,7 +204,7 @@ def _condition_run(run, description, options, cutoff_hz, in_current_units, effor
     gain = _gain(description, in_current_units, effort_is_torque)
     kw["qd_measured"] = rest[0] if rest else None
     cond = condition(t, q, effort, gain=gain, decimate=1, **kw)
-    if (cond.mask[::k].sum() <= 3 * len(free) and options.stiction_guard_s is None
+    if (fallback and cond.mask[::k].sum() <= 3 * len(free) and options.stiction_guard_s is None
             and not effort_is_torque):  # fmt: skip
         kw.update(stiction_guard_s=0.0, flat_is_stuck=False)
         if options.decimate is None and not options.parallel_filter_hz:
@@ -249,10 +285,14 @@ def cutoff_scores(runs, description, options, cands, blocks, in_current_units, e
     scores, thetas, chosen = [], [], []
     for fc in cands:
         best = (np.inf, None, False)
+        # rows the final fit would keep at this candidate's own decimation
+        k_own = condition_kwargs(options.with_(parallel_filter_hz=None), fs, fc, effort_is_torque,
+                                 description)["decimate"]  # fmt: skip
         for ff in variants:
             parts = []  # (block id, A_fit, y_fit, A_eval, y_raw_eval)
             for r_i, (run, rc) in enumerate(zip(runs, ref, strict=True)):
-                c, A, y, raw, plain = _condition_run(run, description, common, fc, *flags, ff)
+                c, A, y, raw, plain = _condition_run(run, description, common, fc, *flags, ff,
+                                                     fallback=False)  # fmt: skip
                 n = len(c.t)
                 block = np.minimum((np.arange(n) * blocks) // max(n, 1), blocks - 1)
                 evaluate = rc.mask[:n] if len(rc.mask) >= n else np.zeros(n, bool)
@@ -261,6 +301,10 @@ def cutoff_scores(runs, description, options, cands, blocks, in_current_units, e
                     parts.append(((r_i, b), A[sel & c.mask], y[sel & c.mask],
                                   plain[sel & evaluate], raw[sel & evaluate]))  # fmt: skip
             score, theta = _kfold(parts, min_rows=3 * len(free))
+            if sum(len(p[1]) for p in parts) * k / max(k_own, 1) <= MIN_ROWS_PER_PARAMETER * len(
+                free
+            ):  # too few rows left at its own decimation: not eligible
+                score = np.nan
             if not score >= best[0]:  # NaN never wins
                 best = (score, theta, bool(ff))
         scores.append(best[0] if np.isfinite(best[0]) else np.nan)
@@ -407,7 +451,7 @@ def _doubts(conds, choice) -> list[str]:
     if n and used < MOST_ROWS_DROPPED * n:
         out.append(
             f"only {used} of {n} conditioned samples usable ({100 * used / n:.0f} %): the fit "
-            "rests on a minority of the data (see the dropped rows above)"
+            "rests on a small part of the data (see the dropped rows above)"
         )
     if all(c.tau_raw is not None for c in conds):
         raw = np.concatenate([c.tau_raw - c.tau_raw.mean(0) for c in conds])

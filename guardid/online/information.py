@@ -142,12 +142,14 @@ class UntilStd:
     """
 
     def __init__(self, description, trajectory, target_pct: float) -> None:
+        from guardid.identify.rows import STICTION_GUARD_PERIODS
         from guardid.online.tracker import LIVE_LS, OnlineIdentifier
 
         self.target_pct = float(target_pct)
         self.tracker = OnlineIdentifier.for_trajectory(
             description, (LIVE_LS,), trajectory, effort="current", per_joint=False,
             detector=False, lam=1.0, rho=None, keep_history=False,
+            guard_periods=STICTION_GUARD_PERIODS,
         )  # fmt: skip
         self.ls = self.tracker.estimators[LIVE_LS]
         self.period_s = float(getattr(trajectory, "period", 0.0) or 0.0)

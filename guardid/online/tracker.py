@@ -134,6 +134,10 @@ class OnlineIdentifier:
         Current from the motor equation (needs the voltages) or from the current sensor.
     per_joint : bool
         Drop only the stuck joint's equation near stiction (False: the whole row).
+    guard_periods : float
+        Rows within this many cut-off periods of a flagged sample are not used
+        (:data:`GUARD_PERIODS`; ``capture --until-std`` uses the batch pipeline's, so that its
+        live standard deviations are not smaller than ``guardid identify``'s).
     """
 
     def __init__(
@@ -152,6 +156,7 @@ class OnlineIdentifier:
         keep_history: bool = True,
         effort: str = "voltage",
         per_joint: bool = True,
+        guard_periods: float = GUARD_PERIODS,
     ):
         from guardid.identify.pipeline import identified_names
 
@@ -186,7 +191,7 @@ class OnlineIdentifier:
         self.conditioner = CausalConditioner(
             n, self.dt, cutoff_hz, gain=self.gain, stiction_threshold=self.threshold
         )
-        self.guard = max(1, int(round(GUARD_PERIODS / cutoff_hz / self.dt)))
+        self.guard = max(1, int(round(guard_periods / cutoff_hz / self.dt)))
         self.warmup = int(round(WARMUP_PERIODS / cutoff_hz / self.dt))
         self._lag = int(round(self.conditioner.delay_samples))
         all_names = list(self.model.base.names)

@@ -508,12 +508,32 @@ class Plant:
         return counts, v_meas, i_meas, v_true, i_true
 
 
+def encoder_phase_q0(description, seed: int) -> list[float]:
+    """Start angles [rad]: each joint at a random point within its first encoder count,
+    drawn from ``seed`` (its own stream, independent of the sensor noise's).
+
+    A real robot's counter is zeroed wherever the joint happens to rest, so where the
+    motion falls on the count grid differs from run to run; on the grid (q0 = 0) every
+    seed of a closed-loop run would share the same quantisation error and the same motion.
+    """
+    rng = random.Random(f"encoder-phase-{seed}")
+    q0 = []
+    for joint in description.joints:
+        enc, drive = joint.encoder, joint.drive
+        gear = drive.gear_ratio if drive is not None else 1.0
+        per_rad = gear * enc.counts_per_rev / (2.0 * math.pi) if enc is not None else 0.0
+        q0.append(rng.random() / per_rad if per_rad else 0.0)
+    return q0
+
+
 def make_plant(description, options) -> Plant:
-    """Plant for the fake port from its options (seed, noise, payload_time/mass/com)."""
+    """Plant for the fake port from its options (seed, noise, payload_time/mass/com, phase:
+    :func:`encoder_phase_q0`)."""
     from guardid.plant.payload import PayloadChange
 
     payload = ()
     if getattr(options, "payload_time", None) is not None:
         payload = (PayloadChange(options.payload_time, options.payload_mass,
                                  tuple(options.payload_com)),)  # fmt: skip
-    return Plant(description, seed=options.seed, noise=options.noise, payload=payload)
+    q0 = encoder_phase_q0(description, options.seed) if getattr(options, "phase", False) else None
+    return Plant(description, seed=options.seed, noise=options.noise, payload=payload, q0=q0)

@@ -209,14 +209,14 @@ def online_figure(result, tracker) -> str | None:
 
 
 def verdict(result) -> tuple[str, bool]:
-    """(one sentence, trusted): how well the method with standard deviations (LS first)
-    resolves every base parameter, by :func:`guardid.online.information.assess` at
-    :data:`POOR_REL_STD_PCT`."""
+    """(one sentence, trusted): how well the reference method (WLS, else LS, else any with
+    standard deviations: :func:`~guardid.identify.pipeline.reference_method`) resolves every
+    base parameter, by :func:`guardid.online.information.assess` at :data:`POOR_REL_STD_PCT`."""
+    from guardid.identify.pipeline import reference_method
     from guardid.online.information import assess, describe
 
-    ls = result.results.get("ls")
-    if ls is None or ls.std is None:
-        ls = next((r for r in result.results.values() if r.std is not None), None)
+    name = reference_method(result.results)
+    ls = None if name is None else result.results[name]
     if ls is None:
         return "No method with standard deviations ran: the uncertainty is unknown.", False
     if not (np.all(np.isfinite(ls.std)) and np.all(np.isfinite(ls.theta))):
@@ -246,8 +246,12 @@ def _wide_table(rows) -> str:
 
 
 def parameter_table(result, reference=None, reference_label="reference") -> str:
+    from guardid.identify.pipeline import reference_method
+
     methods = list(result.results)
-    base = result.results.get("ls") or next(iter(result.results.values()))
+    base = result.results.get(reference_method(result.results)) or next(
+        iter(result.results.values())
+    )
     head = f"<tr><th>parameter</th><th>relative std ({_esc(base.method.upper())})</th>"
     head += "<th>description (YAML)</th>"
     if reference:
@@ -356,7 +360,11 @@ def _page(title: str, inputs_meta: list[str], sections: list[tuple[str, str, str
 
 def identification_report(result, inputs: ReportInputs, title: str | None = None) -> str:
     """The identification page (sections :data:`SECTIONS`) as an HTML string."""
-    base = result.results.get("ls") or next(iter(result.results.values()))
+    from guardid.identify.pipeline import reference_method
+
+    base = result.results.get(reference_method(result.results)) or next(
+        iter(result.results.values())
+    )
     pred = np.einsum("mjb,b->mj", inputs.A, base.theta)
     sentence, trusted = verdict(result)
     warns = "".join(f"<li class='warn'>{_esc(w)}</li>" for w in result.warnings)
