@@ -175,9 +175,12 @@ def _condition_run(run, description, options, cutoff_hz, in_current_units, effor
             k = decimation_factor(fs, cutoff_hz)
         cond = condition(t, q, effort, gain=gain, decimate=1, **kw)
         cond.notes.append("too few rows with the stiction guard: guard disabled")
-    A, y, raw = _rows_of(model, description, cond, free, in_current_units)
-    plain = A
     cols = friction_columns(model, free)
+    early = k > 1 and not (cols and friction_filter)  # the regressor is per sample: only
+    # the kept rows are needed (memory: the regressor of every sample is ~k times larger)
+    keep = slice(None, None, k) if early else None
+    A, y, raw = _rows_of(model, description, cond, free, in_current_units, mask=keep)
+    plain = A
     if cols and friction_filter:
         A = A.copy()
         block = A[:, :, cols]
@@ -191,7 +194,8 @@ def _condition_run(run, description, options, cutoff_hz, in_current_units, effor
             cond, decimation=k, **{f: getattr(cond, f)[::k] for f in fields}, dropped=dropped,
             notes=[*cond.notes, f"decimated by {k}: {fs / k:.4g} Hz"],
         )  # fmt: skip
-        A, y, raw, plain = A[::k], y[::k], raw[::k], plain[::k]
+        if not early:
+            A, y, raw, plain = A[::k], y[::k], raw[::k], plain[::k]
     return cond, A, y, raw, plain
 
 
