@@ -283,7 +283,8 @@ def cutoff_scores(runs, description, options, cands, blocks, in_current_units, e
     common = replace(common, decimate=k, parallel_filter_hz=None)
     flags = (in_current_units, effort_is_torque, model, free)
     middle = cands[len(cands) // 2]  # evaluation rows: those usable under the middle one
-    ref = [_condition_run(r, description, common, middle, *flags)[0] for r in runs]
+    # only their masks are kept (a long log's conditioned signals need not stay in memory)
+    ref = [_condition_run(r, description, common, middle, *flags)[0].mask for r in runs]
     variants = [options.friction_filter]
     if options.friction_filter is None:
         variants = [False, True] if friction_columns(model, free) else [False]
@@ -294,14 +295,15 @@ def cutoff_scores(runs, description, options, cands, blocks, in_current_units, e
             parts = []  # (block id, A_fit, y_fit, A_eval, y_raw_eval)
             for r_i, (run, rc) in enumerate(zip(runs, ref, strict=True)):
                 c, A, y, raw, plain = _condition_run(run, description, common, fc, *flags, ff)
-                n = len(c.t)
+                n, fit = len(c.t), c.mask
+                del c  # only its mask is needed here
                 block = np.minimum((np.arange(n) * blocks) // max(n, 1), blocks - 1)
-                evaluate = rc.mask[:n] if len(rc.mask) >= n else np.zeros(n, bool)
+                evaluate = rc[:n] if len(rc) >= n else np.zeros(n, bool)
                 for b in range(blocks):
                     sel = block == b
-                    parts.append(((r_i, b), A[sel & c.mask], y[sel & c.mask],
+                    parts.append(((r_i, b), A[sel & fit], y[sel & fit],
                                   plain[sel & evaluate], raw[sel & evaluate]))  # fmt: skip
-                del c, A, y, raw, plain  # before the next candidate's are made
+                del A, y, raw, plain  # before the next candidate's are made
             score, theta = _kfold(parts, min_rows=3 * len(free))
             if not score >= best[0]:  # NaN never wins
                 best = (score, theta, bool(ff))
