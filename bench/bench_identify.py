@@ -1,5 +1,6 @@
 """`guardid identify` as a user runs it, on a one-hour and a four-hour capture: wall time,
-CPU time and peak memory of the whole command, and reading the one-hour log.
+CPU time and peak memory of the whole command, and reading the one-hour log (``read_log``
+once, and every read ``guardid identify`` makes of its log: three in older trees, one now).
 
 The captures are made once and cached (``--cache``, default <tmp>/guardid-bench-cache):
 one hour of the optimised excitation (``guardid excite``) captured from ``sim://guard`` in
@@ -8,12 +9,16 @@ gap of 100 ticks at each join (lost rows: the conditioning restarts there, as it
 after a real gap; the excitation is periodic, so each hour is a whole number of periods).
 
 Each command runs as a subprocess ``--runs`` times; the figures are the median and the worst
-run. Peak memory is the child's maximum resident set (``os.wait4``). ``--baseline DIR``
+run. CPU time includes the command's own children (``guardid identify`` replays the
+tracker in a forked process while it fits); peak memory is the largest maximum resident set
+of the command and its children (``os.wait4``; each process counts the pages it shares with
+the other). ``--reads-only`` times the reads alone (a cheap paired run against an old
+tree, whose identify takes minutes). ``--baseline DIR``
 runs the same commands with another source tree first on ``PYTHONPATH`` (for example
 ``git worktree add /tmp/old main``), alternating with this one, and prints the ratios
 old/new of the medians: paired figures from the same run on the same (possibly busy) machine.
 
-    python bench/bench_identify.py [--hours 1 4] [--runs 3] [--baseline DIR]
+    python bench/bench_identify.py [--hours 1 4] [--runs 3] [--baseline DIR] [--reads-only]
 """
 
 from __future__ import annotations
@@ -30,6 +35,16 @@ from pathlib import Path
 READ_SNIPPET = (
     "import sys, time; from guardid.log import read_log; s = time.process_time(); "
     "d = read_log(sys.argv[1]); print(time.process_time() - s, len(d.columns['tick']))"
+)
+
+CLI_READ_SNIPPET = (  # the reads of guardid identify: the run, the header's harmonic, the
+    # tracker's (a6256d5 read the header again for each; the run carries it now)
+    "import importlib, sys, time; I = importlib.import_module('guardid.commands.identify'); "
+    "from guardid.online.offline import log_highest_harmonic; s = time.process_time(); "
+    "run, d = I._load(sys.argv[1], None, (), None, None, None); "
+    "I._highest_harmonic(sys.argv[1], run); "
+    "hasattr(run, 'highest_harmonic_hz') or log_highest_harmonic(sys.argv[1]); "
+    "print(time.process_time() - s, len(run.t))"
 )
 
 
@@ -115,17 +130,34 @@ def measure(label, cmd, runs, trees):
         wall = [r[0] for r in rs]
         cpu = [r[1] for r in rs]
         rss = [r[2] for r in rs]
+        own = [_own_seconds(r[3]) for r in rs]
         name = "this tree" if tree is None else f"baseline {tree}"
+        inner = ""
+        if None not in own:  # a snippet printing its own CPU time (after its imports)
+            inner = f", in-process CPU median {statistics.median(own):.2f} s"
         print(
             f"{label} [{name}]: wall median {statistics.median(wall):.2f} s (worst "
-            f"{max(wall):.2f}), CPU median {statistics.median(cpu):.2f} s, peak RSS "
+            f"{max(wall):.2f}), CPU median {statistics.median(cpu):.2f} s{inner}, peak RSS "
             f"{max(rss):.0f} MB, {runs} runs"
         )
         medians[tree] = (statistics.median(wall), statistics.median(cpu))
+        if inner:
+            medians[tree] += (statistics.median(own),)
     if len(trees) == 2:
-        (ow, oc), (nw, nc) = medians[trees[1]], medians[trees[0]]
-        print(f"{label}: old/new wall {ow / nw:.1f}x, CPU {oc / nc:.1f}x (paired, same run)")
+        old, new = medians[trees[1]], medians[trees[0]]
+        text = f"{label}: old/new wall {old[0] / new[0]:.1f}x, CPU {old[1] / new[1]:.1f}x"
+        if len(old) == len(new) == 3:
+            text += f", in-process CPU {old[2] / new[2]:.1f}x"
+        print(text + " (paired, same run)")
     return medians
+
+
+def _own_seconds(out: str):
+    """The first number a snippet printed (its own CPU time [s]), or None."""
+    try:
+        return float(out.split()[0])
+    except (IndexError, ValueError):
+        return None
 
 
 def main() -> None:
@@ -141,6 +173,7 @@ def main() -> None:
         "--minutes", type=float, default=None,
         help="Instead of --hours: the first MINUTES of the one-hour log (a cheaper paired run).",
     )  # fmt: skip
+    ap.add_argument("--reads-only", action="store_true", help="Only the log reading figures.")
     args = ap.parse_args()
     trees = [None] + ([str(Path(args.baseline).resolve())] if args.baseline else [])
     hour = hour_log(args.cache)
@@ -148,6 +181,10 @@ def main() -> None:
     read = [sys.executable, "-c", READ_SNIPPET, str(hour)]
     print(f"one-hour log: {hour} ({hour.stat().st_size / 1e6:.1f} MB)")
     measure("read_log, one hour", read, args.runs, trees)
+    cli_read = [sys.executable, "-c", CLI_READ_SNIPPET, str(hour)]
+    measure("identify's reads of its log, one hour", cli_read, args.runs, trees)
+    if args.reads_only:
+        return
     logs = [(f"{h} h", repeated_log(hour, h)) for h in args.hours]
     if args.minutes is not None:
         logs = [(f"{args.minutes:g} min", first_minutes(hour, args.minutes))]

@@ -107,3 +107,32 @@ def test_a_replayed_tracker_takes_no_more_rows(payload_log):
     tracker.feed(t[:200], run.q[:200], run.current[:200], run.voltage[:200])
     with pytest.raises(RuntimeError, match="takes no more rows"):
         tracker.update(float(t[200]), run.q[200], run.current[200], run.voltage[200])
+
+
+def test_identify_tracks_in_a_forked_process_with_the_in_process_output(payload_log, monkeypatch):
+    """``guardid identify`` replays the log in a forked process while it fits (two cores):
+    the same printed tracking lines and change warning as the replay in the process."""
+    import guardid.online.offline as offline
+
+    run, _ = payload_log
+    made = []
+    real = offline.ForkedTracking
+
+    def spy(*args, **kwargs):
+        made.append(real(*args, **kwargs))
+        return made[-1]
+
+    monkeypatch.setattr(offline, "ForkedTracking", spy)
+    monkeypatch.setattr("os.sched_getaffinity", lambda pid: {0, 1}, raising=False)
+
+    def lines(result):
+        return [x for x in result.output.splitlines() if not x.startswith("identify: done")]
+
+    forked = CliRunner().invoke(cli, ["identify", str(run.path)])
+    assert len(made) == 1 and not made[0]._proc.is_alive()
+    monkeypatch.setattr(offline, "start_tracking", lambda *args, **kwargs: None)
+    inside = CliRunner().invoke(cli, ["identify", str(run.path)])
+    assert forked.exit_code == inside.exit_code == 0, inside.output
+    assert any(x.startswith("tracking (the log replayed") for x in lines(forked))
+    assert any(x.startswith("payload changed") for x in lines(forked))  # the 1 kg at 22 s
+    assert lines(forked) == lines(inside)

@@ -228,6 +228,11 @@ def identify(
         _cross_validate(logs, runs, description, methods, options, current_units, beta, lam, eta)
         return
     arrays = _arrays(runs)
+    forked = None  # the tracker's replay on another core while the batch fit runs
+    if plot_path is None and report_path is None:
+        from guardid.online.offline import start_tracking
+
+        forked = start_tracking(run, description, methods, lam, beta, log_path=log)
     status.stage("conditioning and fitting")
     result = run_identify(
         arrays["t"], arrays["q"], arrays["current"], description, methods=methods,
@@ -257,12 +262,19 @@ def identify(
     from guardid.online.offline import track_log
 
     status.stage("tracking")
-    tracker = track_log(
-        run, description, methods, lam, beta, log_path=log,
-        keep_history=plot_path is not None or report_path is not None,
-    )  # fmt: skip
-    if tracker is not None and tracker.reports:
-        times = sorted({round(r.at_s, 1) for r in tracker.reports})
+    tracker = None
+    if forked is not None:
+        lines, changes = forked.result()
+        for line in lines:
+            click.echo(line)
+    else:
+        tracker = track_log(
+            run, description, methods, lam, beta, log_path=log,
+            keep_history=plot_path is not None or report_path is not None,
+        )  # fmt: skip
+        changes = [r.at_s for r in tracker.reports] if tracker is not None else []
+    if changes:
+        times = sorted({round(t, 1) for t in changes})
         when = ", ".join(f"{t:.1f} s" for t in times)
         click.echo(
             f"warning: {log}: the parameters changed at {when}; the table's batch estimates "

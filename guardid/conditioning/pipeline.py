@@ -76,6 +76,7 @@ def condition(
     qd_measured=None,
     position_limits=None,
     stop_guard_s: float = 0.0,
+    keep_every: int = 1,
 ) -> Conditioned:
     """Condition a log for identification: filter, differentiate, align, decimate, mask.
 
@@ -123,6 +124,11 @@ def condition(
         against a hard stop (:func:`~guardid.conditioning.stiction.at_position_limit`): the
         contact force, and the impact on arrival, are not in the model. They are masked, and
         so are the rows within ``stop_guard_s`` [s] of them.
+    keep_every : int
+        With ``decimate=1``: return only every k-th sample of the outputs (their own arrays,
+        so a long log's full-rate ones are freed), everything else as without it (the
+        masks, ``n_flagged`` and ``dropped`` counted on every sample, no decimation note):
+        the result of ``decimate=1`` followed by slicing ``[::k]``.
 
     The same zero-phase low-pass is applied to positions and efforts (parallel
     filtering), so both sides of tau = Y(q, qd, qdd) theta see the same filter; q, qd, qdd
@@ -144,7 +150,7 @@ def condition(
             flat = np.any(same, axis=1)
     else:
         grid, dt = uniform_grid(t)
-        q = resample(t, q, grid)
+        q = _by_column(lambda x: resample(t, x, grid), q)
         notes.append(f"uneven time stamps: resampled (cubic spline) to a uniform {dt:.6g} s grid")
     fs = 1.0 / dt
     if cutoff_hz is None:
@@ -154,20 +160,25 @@ def condition(
     else:
         notes.append(f"cut-off {cutoff_hz:.3g} Hz set by the caller")
     if align_period_mean:
-        eff = alignment.align_period_mean(t, eff, grid)
+        eff = _by_column(lambda m: alignment.align_period_mean(t, m, grid), eff)
         notes.append("effort taken as period means, aligned to the tick instants")
     elif grid is not t:
-        eff = resample(t, eff, grid)
-    qf = zero_phase_lowpass(q, fs, cutoff_hz, order)
-    tau = zero_phase_lowpass(eff, fs, cutoff_hz, order)
+        eff = _by_column(lambda x: resample(t, x, grid), eff)
+
+    def lowpass(x):
+        return zero_phase_lowpass(x, fs, cutoff_hz, order)
+
+    qf = _by_column(lowpass, q)
+    tau = _by_column(lowpass, eff)
     raw = eff
-    qd, qdd = central_derivatives(qf, dt)
+    qd = _by_column(lambda x: central_derivatives(x, dt)[0], qf)
+    qdd = _by_column(lambda x: central_derivatives(x, dt)[1], qf)
     if qd_measured is not None:
         vel = np.asarray(qd_measured, dtype=float).reshape(len(t), -1)
         if grid is not t:
-            vel = resample(t, vel, grid)
-        qd = zero_phase_lowpass(vel, fs, cutoff_hz, order)
-        qdd = central_derivatives(qd, dt)[0]
+            vel = _by_column(lambda x: resample(t, x, grid), vel)
+        qd = _by_column(lowpass, vel)
+        qdd = _by_column(lambda x: central_derivatives(x, dt)[0], qd)
         notes.append("measured velocities used (low-passed alike), qdd differentiated from them")
     if gain is None:
         unit = "effort"
@@ -202,9 +213,25 @@ def condition(
     if k > 1:
         notes.append(f"decimated by {k}: {fs / k:.4g} Hz, Nyquist {fs / (2 * k):.4g} Hz")
     sl = slice(0, None, k)
-    grid, qf, qd, qdd, tau, raw = grid[sl], qf[sl], qd[sl], qdd[sl], tau[sl], raw[sl]
-    stuck, near, inside = stuck[sl], near[sl], inside[sl]
-    at_stop, near_stop = at_stop[sl], near_stop[sl]
+    if k > 1:  # own arrays: the full-rate ones are freed
+        grid, qf, qd, qdd, tau, raw = (
+            np.ascontiguousarray(x[sl]) for x in (grid, qf, qd, qdd, tau, raw)
+        )
+        stuck, near, inside = stuck[sl], near[sl], inside[sl]
+        at_stop, near_stop = at_stop[sl], near_stop[sl]
+    dropped = {
+        "at the ends (filter transients)": int((~inside).sum()),
+        "near zero velocity": int((inside & stuck).sum()),
+        "next to a near-zero-velocity sample": int((inside & near & ~stuck).sum()),
+        "at or next to a hard stop": int((inside & ~near & near_stop).sum()),
+    }
+    if k == 1 and keep_every > 1:  # the counts above stay those of every sample
+        sl = slice(0, None, int(keep_every))
+        grid, qf, qd, qdd, tau, raw = (
+            np.ascontiguousarray(x[sl]) for x in (grid, qf, qd, qdd, tau, raw)
+        )
+        stuck, near, inside = stuck[sl], near[sl], inside[sl]
+        at_stop, near_stop = at_stop[sl], near_stop[sl]
     how = " or with no encoder count" if flat is not None else ""
     notes.append(
         f"stiction threshold {np.array2string(threshold, precision=4)} rad/s{how}: "
@@ -226,13 +253,25 @@ def condition(
         notes,
         raw,
         n_flagged,
-        {
-            "at the ends (filter transients)": int((~inside).sum()),
-            "near zero velocity": int((inside & stuck).sum()),
-            "next to a near-zero-velocity sample": int((inside & near & ~stuck).sum()),
-            "at or next to a hard stop": int((inside & ~near & near_stop).sum()),
-        },
+        dropped,
     )
+
+
+def _by_column(fn, x) -> np.ndarray:
+    """``fn`` (N, 1) -> (M, 1) applied to each column of ``x`` (N, n) in turn, into one (M, n)
+    array: the same values (every step filters or differentiates each column on its own)
+    with the temporaries of one column at a time (peak memory of a long log)."""
+    x = np.asarray(x, dtype=float)
+    if x.ndim != 2 or x.shape[1] == 1:
+        return fn(x)
+    out = None
+    for j in range(x.shape[1]):
+        col = fn(x[:, j : j + 1])
+        if out is None:
+            out = np.empty((col.shape[0], x.shape[1]))
+        out[:, j] = col[:, 0]
+        del col
+    return out
 
 
 def _dilate(mask: np.ndarray, half_width: int) -> np.ndarray:

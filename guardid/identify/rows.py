@@ -143,17 +143,42 @@ def _gain(description, in_current_units, effort_is_torque):
     return np.ones(len(description.joints)) if effort_is_torque else drive_gain(description)
 
 
+ROWS_CHUNK = 32768
+"""Samples whose regressor is formed at a time in :func:`_rows_of` (its temporaries, the
+full regressor before the base projection, stay a few tens of MB on long logs)."""
+
+
 def _rows_of(model, description, cond, free, in_current_units, mask=None):
     """(A (M, n, b'), y (M, n), y_raw (M, n)) on the rows of ``mask`` (default all)."""
     m = slice(None) if mask is None else mask
-    q, qd, qdd = cond.q[m], cond.qd[m], cond.qdd[m]
+    q, qd, qdd, tau = cond.q[m], cond.qd[m], cond.qdd[m], cond.tau[m]
+    tau_raw = None if cond.tau_raw is None else cond.tau_raw[m]
+    A = y = raw = None
+    for s in range(0, max(len(q), 1), ROWS_CHUNK):  # per sample: the same values in chunks
+        c = slice(s, s + ROWS_CHUNK)
+        A_c, y_c, raw_c = _rows_chunk(model, q[c], qd[c], qdd[c], tau[c],
+                                      None if tau_raw is None else tau_raw[c], free,
+                                      in_current_units)  # fmt: skip
+        if A is None:
+            if len(q) <= ROWS_CHUNK:
+                return A_c, y_c, raw_c
+            A = np.empty((len(q), *A_c.shape[1:]))
+            y = np.empty((len(q), *y_c.shape[1:]))
+            raw = None if raw_c is None else np.empty((len(q), *raw_c.shape[1:]))
+        A[c], y[c] = A_c, y_c
+        if raw is not None:
+            raw[c] = raw_c
+    return A, y, raw
+
+
+def _rows_chunk(model, q, qd, qdd, tau, tau_raw, free, in_current_units):
     A_all = model.base_regressor(q, qd, qdd)
     known = model.known_torque(q, qd, qdd)
     fixed = [i for i in range(A_all.shape[2]) if i not in free]
     if fixed and not in_current_units:
         known = known + A_all[:, :, fixed] @ model.base.values(model.params)[fixed]
-    raw = None if cond.tau_raw is None else cond.tau_raw[m] - known
-    return A_all[:, :, free], cond.tau[m] - known, raw
+    raw = None if tau_raw is None else tau_raw - known
+    return A_all[:, :, free], tau - known, raw
 
 
 def identification_rows(
@@ -186,7 +211,7 @@ def _condition_run(run, description, options, cutoff_hz, in_current_units, effor
     (conditioned signals, A (M, n, b'), y (M, n), y_raw (M, n), A_plain (M, n, b')) on every
     conditioned (decimated) sample; the usable rows are ``cond.mask``.
 
-    The regressor is computed on every sample before decimation. With ``friction_filter``
+    With ``friction_filter`` the regressor is computed on every sample before decimation;
     its Coulomb (and Stribeck) columns are low-passed with the same zero-phase filter as the
     effort: the filtered effort carries the friction jump at a reversal smeared over about a
     cut-off period, and so does the column then (parallel filtering of the one strongly
@@ -203,17 +228,26 @@ def _condition_run(run, description, options, cutoff_hz, in_current_units, effor
     k = kw.pop("decimate")
     gain = _gain(description, in_current_units, effort_is_torque)
     kw["qd_measured"] = rest[0] if rest else None
-    cond = condition(t, q, effort, gain=gain, decimate=1, **kw)
-    if (fallback and cond.mask[::k].sum() <= 3 * len(free) and options.stiction_guard_s is None
-            and not effort_is_torque):  # fmt: skip
+    cols = friction_columns(model, free)
+    full_rate = bool(cols and friction_filter)  # those columns are filtered at every sample
+
+    def conditioned(k):
+        """The run conditioned at every sample; with k > 1 and no column to filter only
+        every k-th sample is kept (the regressor is per sample: the same rows, and the
+        full-rate signals and regressor, k times larger, are never held)."""
+        every = k if k > 1 and not full_rate else 1
+        return condition(t, q, effort, gain=gain, decimate=1, keep_every=every, **kw), every
+
+    cond, every = conditioned(k)
+    if (fallback and (cond.mask if every > 1 else cond.mask[::k]).sum() <= 3 * len(free)
+            and options.stiction_guard_s is None and not effort_is_torque):  # fmt: skip
         kw.update(stiction_guard_s=0.0, flat_is_stuck=False)
         if options.decimate is None and not options.parallel_filter_hz:
             k = decimation_factor(fs, cutoff_hz)
-        cond = condition(t, q, effort, gain=gain, decimate=1, **kw)
+        cond, every = conditioned(k)
         cond.notes.append("too few rows with the stiction guard: guard disabled")
     A, y, raw = _rows_of(model, description, cond, free, in_current_units)
     plain = A
-    cols = friction_columns(model, free)
     if cols and friction_filter:
         A = A.copy()
         block = A[:, :, cols]
@@ -223,12 +257,19 @@ def _condition_run(run, description, options, cutoff_hz, in_current_units, effor
     if k > 1:
         fields = ("t", "q", "qd", "qdd", "tau", "mask", "stiction", "tau_raw")
         dropped = {key: int(round(v / k)) for key, v in cond.dropped.items()}
+        kept = {} if every > 1 else {f: _kept(getattr(cond, f), k) for f in fields}
         cond = replace(
-            cond, decimation=k, **{f: getattr(cond, f)[::k] for f in fields}, dropped=dropped,
+            cond, decimation=k, **kept, dropped=dropped,
             notes=[*cond.notes, f"decimated by {k}: {fs / k:.4g} Hz"],
         )  # fmt: skip
-        A, y, raw, plain = A[::k], y[::k], raw[::k], plain[::k]
+        if every == 1:
+            A, y, raw, plain = A[::k], y[::k], raw[::k], plain[::k]
     return cond, A, y, raw, plain
+
+
+def _kept(x, k):
+    """Every k-th row of ``x`` as its own array (the full-rate one can then be freed)."""
+    return None if x is None else np.ascontiguousarray(x[::k])
 
 
 def friction_columns(model, free) -> list[int]:
@@ -278,7 +319,8 @@ def cutoff_scores(runs, description, options, cands, blocks, in_current_units, e
     common = replace(common, decimate=k, parallel_filter_hz=None)
     flags = (in_current_units, effort_is_torque, model, free)
     middle = cands[len(cands) // 2]  # evaluation rows: those usable under the middle one
-    ref = [_condition_run(r, description, common, middle, *flags)[0] for r in runs]
+    # only their masks are kept (a long log's conditioned signals need not stay in memory)
+    ref = [_condition_run(r, description, common, middle, *flags)[0].mask for r in runs]
     variants = [options.friction_filter]
     if options.friction_filter is None:
         variants = [False, True] if friction_columns(model, free) else [False]
@@ -293,13 +335,15 @@ def cutoff_scores(runs, description, options, cands, blocks, in_current_units, e
             for r_i, (run, rc) in enumerate(zip(runs, ref, strict=True)):
                 c, A, y, raw, plain = _condition_run(run, description, common, fc, *flags, ff,
                                                      fallback=False)  # fmt: skip
-                n = len(c.t)
+                n, fit = len(c.t), c.mask
+                del c  # only its mask is needed here
                 block = np.minimum((np.arange(n) * blocks) // max(n, 1), blocks - 1)
-                evaluate = rc.mask[:n] if len(rc.mask) >= n else np.zeros(n, bool)
+                evaluate = rc[:n] if len(rc) >= n else np.zeros(n, bool)
                 for b in range(blocks):
                     sel = block == b
-                    parts.append(((r_i, b), A[sel & c.mask], y[sel & c.mask],
+                    parts.append(((r_i, b), A[sel & fit], y[sel & fit],
                                   plain[sel & evaluate], raw[sel & evaluate]))  # fmt: skip
+                del A, y, raw, plain  # before the next candidate's are made
             score, theta = _kfold(parts, min_rows=3 * len(free))
             if sum(len(p[1]) for p in parts) * k / max(k_own, 1) <= MIN_ROWS_PER_PARAMETER * len(
                 free

@@ -291,6 +291,12 @@ class ChangeDetector:
                 fired = fired or v > h
         if not fired:
             return None
+        return self._fire(t)
+
+    def _fire(self, t: float) -> Alarm:
+        """The alarm at ``t`` [s] from the CUSUM state (some G over ``h``): the change time,
+        the estimate before it; the detector goes to settling."""
+        h = self.settings.h
         g_arr = np.array(self._g)
         zero = np.array(self._zero_t)
         first = np.argmin(np.where(g_arr > h, zero, np.inf))

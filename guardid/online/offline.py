@@ -91,3 +91,77 @@ def track_log(
     if not tracker.reports:
         echo("no parameter change detected")
     return tracker
+
+
+class ForkedTracking:
+    """:func:`track_log` running in a forked process while the caller goes on (the batch
+    fit of ``guardid identify``): the replay is one core's work, the fit another's.
+
+    :meth:`result` waits and returns (the lines :func:`track_log` printed, the change times
+    [s] of its reports); an error in the replay is raised there. :meth:`cancel` ends the
+    process if its result is not wanted (called when the click command closes)."""
+
+    def __init__(self, run, description, methods, lam, beta, log_path, effort="voltage"):
+        import multiprocessing
+
+        ctx = multiprocessing.get_context("fork")
+        self._recv, send = ctx.Pipe(duplex=False)
+
+        def work():  # in the child: the inherited run, no copy through the pipe
+            try:
+                lines: list[str] = []
+                tracker = track_log(
+                    run, description, methods, lam, beta, log_path=log_path,
+                    echo=lines.append, effort=effort, keep_history=False,
+                )  # fmt: skip
+                changes = [r.at_s for r in tracker.reports] if tracker is not None else []
+                send.send(("ok", lines, changes))
+            except BaseException as exc:  # noqa: BLE001 - handed to the parent as it is
+                try:
+                    send.send(("error", exc, None))
+                except Exception:  # noqa: BLE001 - an exception that does not pickle
+                    send.send(("error", RuntimeError(f"tracking: {exc!r}"), None))
+
+        self._proc = ctx.Process(target=work, daemon=True)
+        self._proc.start()
+        send.close()
+        click_ctx = click.get_current_context(silent=True)
+        if click_ctx is not None:
+            click_ctx.call_on_close(self.cancel)
+
+    def result(self) -> tuple[list[str], list[float]]:
+        try:
+            kind, value, changes = self._recv.recv()
+        except EOFError:
+            self._proc.join()
+            from guardid.errors import GuardidError
+
+            raise GuardidError(
+                f"tracking: the replay process ended without a result (exit code "
+                f"{self._proc.exitcode})"
+            ) from None
+        finally:
+            self._recv.close()
+        self._proc.join()
+        if kind == "error":
+            raise value
+        return value, changes
+
+    def cancel(self) -> None:
+        if self._proc.is_alive():
+            self._proc.terminate()
+        self._proc.join()
+        self._recv.close()
+
+
+def start_tracking(run, description, methods, lam=None, beta=None, log_path=None):
+    """A :class:`ForkedTracking` of ``run`` when it is worth it (an online method asked for,
+    more than one core to run on, ``fork`` available), else None (call :func:`track_log`)."""
+    import os
+
+    if not any(m in ONLINE_METHODS for m in methods) or not hasattr(os, "fork"):
+        return None
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    if (cores or 1) < 2:
+        return None
+    return ForkedTracking(run, description, methods, lam, beta, log_path)

@@ -19,6 +19,8 @@ import time
 import numpy as np
 from scipy.signal import sosfilt, sosfilt_zi
 
+from guardid.online.replay_loop import MethodReplay, Rows
+
 CHUNK_ROWS = 20000
 """Used rows whose regressor is formed at a time (memory: about 0.5 kB per row)."""
 
@@ -93,21 +95,25 @@ def replay(tracker, t_s, q_rad, current_a, voltage_v=None) -> list:
     tk._k = N - 1
     tk._replayed = True
     tk.busy_s += time.perf_counter() - started
-    reports = []
-    use_row = tk._use_row
-    full_rows = np.ones(n, dtype=bool)
+    rows = Rows(t_use, ~bad)
+    methods = [MethodReplay(tk, m, order) for order, m in enumerate(tk.methods)]
     for c0 in range(0, len(rows_k), CHUNK_ROWS):  # equations a chunk at a time: bounded memory
         c1 = min(c0 + CHUNK_ROWS, len(rows_k))
         A, y = _equations(tk, qf[c0:c1], qd[c0:c1], qdd[c0:c1], tau[c0:c1])
-        for i in range(c1 - c0):
-            ok = ~bad[c0 + i]
-            t_i = float(t_use[c0 + i])
-            if ok.all():
-                reports += use_row(t_i, A[i], y[i], full_rows)
-            else:
-                reports += use_row(
-                    t_i, np.ascontiguousarray(A[i][ok]), np.ascontiguousarray(y[i][ok]), ok
-                )
+        absent = bad[c0:c1]
+        A[absent] = 0.0  # an absent joint's equation as a zero row: it adds nothing
+        y[absent] = 0.0
+        rows.set_chunk(c0, A, y)
+        for method in methods:
+            method.run(rows, c0, c1)
+    for method in methods:
+        method.finish()
+    tk.used = len(rows_k)
+    if tk.keep_history:
+        tk._hist_t.extend(t_use)
+    found = sorted((r for method in methods for r in method.reports), key=lambda r: r[:2])
+    reports = [r[2] for r in found]
+    tk.reports += reports
     tk.busy_s = time.perf_counter() - started
     return reports
 

@@ -468,6 +468,17 @@ class _Growing:
         self._buf[self.n] = row
         self.n += 1
 
+    def extend(self, rows) -> None:
+        """Append the rows of ``rows`` (k, *shape) in order."""
+        rows = np.asarray(rows, dtype=float)
+        need = self.n + len(rows)
+        if need > len(self._buf):
+            grown = np.empty((max(2 * len(self._buf), need), *self._buf.shape[1:]))
+            grown[: self.n] = self._buf[: self.n]
+            self._buf = grown
+        self._buf[self.n : need] = rows
+        self.n = need
+
     def __len__(self) -> int:
         return self.n
 
