@@ -17,7 +17,13 @@ from guardid.conditioning.options import ConditioningOptions
 from guardid.conditioning.parallel import parallel_filter
 from guardid.dynamics import build_model
 from guardid.errors import GuardidError
-from guardid.identify.cutoff import CutoffChoice, choose_cutoff_cv
+from guardid.identify.cutoff import (
+    MIN_BLOCKS,
+    CutoffChoice,
+    ParallelChoice,
+    choose_cutoff_cv,
+    choose_parallel_filter,
+)
 
 STICTION_GUARD_PERIODS = 0.6
 """guardid logs: rows within this many cut-off periods of a stuck / reversing sample are
@@ -341,6 +347,11 @@ def stacked_rows(
     if ff is None:
         ff = bool(choice.friction_filter) if choice is not None else False
     used = replace(options, cutoff_hz=float(cutoff), friction_filter=ff)
+    parallel = None
+    if options.cutoff_hz is None and options.parallel_filter_hz is None:
+        flags = (in_current_units, effort_is_torque, model, free)
+        parallel = _auto_parallel(runs, description, used, *flags)
+        used = replace(used, parallel_filter_hz=parallel.hz)
     conds, As, ys = [], [], []
     for run in runs:
         c, A, y, _, _ = _condition_run(run, description, used, cutoff, in_current_units,
@@ -361,9 +372,71 @@ def stacked_rows(
     joined = _join(conds)
     if choice is not None:
         joined.notes.insert(0, f"cut-off {cutoff:g} Hz: {choice.reason}")
+        if parallel is not None:
+            joined.notes.insert(1, parallel.reason)
     else:
         joined.notes.insert(0, f"cut-off {cutoff:g} Hz set by the caller")
     return Rows(joined, A, y, used, choice, _doubts(conds, choice))
+
+
+def _auto_parallel(runs, description, used, in_current_units, effort_is_torque, model, free):
+    """The parallel filter chosen from the data (:func:`choose_parallel_filter`) for the
+    runs conditioned under ``used`` (cut-off resolved). Off when some row inside the ends
+    was dropped (near zero velocity, stuck): the filter mixes neighbouring samples, so the
+    model must hold on every one of them."""
+    flags = (in_current_units, effort_is_torque, model, free, used.friction_filter)
+    fine = [_condition_run(r, description, replace(used, decimate=1), used.cutoff_hz, *flags)
+            for r in runs]  # fmt: skip
+    inside = sum(c.dropped.get(k, 0) for c, *_ in fine for k in c.dropped if "velocity" in k)
+    if inside:
+        return ParallelChoice(None, "parallel filter off: rows near zero velocity were "
+                              "dropped (the filter would mix them back in)")  # fmt: skip
+
+    off = [_condition_run(r, description, used, used.cutoff_hz, *flags) for r in runs]
+    blocks = max(1, -(-MIN_BLOCKS // len(runs)))
+
+    def block_of(t, c):
+        span = max(float(c.t[-1] - c.t[0]), 1e-300)
+        return np.minimum(((t - c.t[0]) / span * blocks).astype(int), blocks - 1)
+
+    def score(hz):
+        if hz is None:
+            fits = [(A[c.mask], y[c.mask], c.t[c.mask]) for c, A, y, _, _ in off]
+        else:
+            fits = [_parallel(c, A, y, free, hz) for c, A, y, _, _ in fine]
+            fits = [(A, y, c.t[c.mask]) for c, A, y in fits]
+        parts = []
+        for (A, y, t), (c, _, _, raw, plain) in zip(fits, off, strict=True):
+            fit_block, eval_block = block_of(t, c), block_of(c.t, c)
+            for b in range(blocks):
+                ev = c.mask & (eval_block == b)
+                parts.append((b, A[fit_block == b], y[fit_block == b], plain[ev], raw[ev]))
+        held_out, _ = _kfold(parts, min_rows=3 * len(free))
+        A = np.concatenate([f[0] for f in fits])
+        y = np.concatenate([f[1] for f in fits])
+        return covariance_log_volume(A, y), held_out
+
+    return choose_parallel_filter(used.cutoff_hz, score)
+
+
+def covariance_log_volume(A, y) -> float:
+    """log det(s^2 (A^T A)^-1) / p for the rows A (M, n, p), y (M, n): the log of the
+    geometric mean of the least-squares estimate's variances (the covariance's volume per
+    parameter) [-]; NaN when rank-deficient or with at most 3 p rows."""
+    p = A.shape[-1]
+    a, b = A.reshape(-1, p), y.reshape(-1)
+    if len(b) <= 3 * p:
+        return np.nan
+    d = np.sqrt(np.sum(a * a, axis=0))
+    if np.any(d == 0):
+        return np.nan
+    x, *_ = np.linalg.lstsq(a / d, b, rcond=None)
+    r = b - (a / d) @ x
+    s2 = float(r @ r) / (len(b) - p)
+    sign, logdet = np.linalg.slogdet((a / d).T @ (a / d))
+    if sign <= 0 or s2 <= 0:
+        return np.nan
+    return float(np.log(s2) - (logdet + 2.0 * np.sum(np.log(d))) / p)
 
 
 def _join(conds):
