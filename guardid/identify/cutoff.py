@@ -148,6 +148,7 @@ class ParallelChoice:
     reason: str
     candidates: list = field(default_factory=list)
     scores: list[float] = field(default_factory=list)
+    decimate: int | None = None
 
 
 def parallel_candidates(cutoff_hz: float) -> list[float]:

@@ -28,6 +28,10 @@ from guardid.identify.cutoff import (
 STICTION_GUARD_PERIODS = 0.6
 """guardid logs: rows within this many cut-off periods of a stuck / reversing sample are
 dropped [-] (stick/slip of the PID-tracked joints smeared by the low-pass)."""
+PARALLEL_EDGE_PERIODS = 3.0
+"""The parallel filter spreads the rows at the ends (filter transients, stencil edges) over
+about this many of its periods: rows that close to the first-stage's ends are dropped [-]
+(the padding of :func:`~guardid.conditioning.filters.zero_phase_lowpass` too)."""
 MOST_ROWS_DROPPED = 0.5
 """Warn when fewer than this fraction of the conditioned samples are usable [-]."""
 POWER_BEYOND_CUTOFF = 0.1
@@ -214,18 +218,21 @@ def friction_columns(model, free) -> list[int]:
     return [i for i, n in enumerate(names) if n.startswith(("Fc", "Fs")) and n[2:] in smooth]
 
 
-def _parallel(cond, A_all, y, free, hz):
+def _parallel(cond, A_all, y, free, hz, decimate=None):
     """Gautier's parallel filter at ``hz`` [Hz] on the regressor and the torque of every
-    conditioned sample, then decimation (docs/FOREIGN_LOGS.md)."""
+    conditioned sample, then decimation by ``decimate`` (default: new Nyquist >= 2 hz;
+    docs/FOREIGN_LOGS.md)."""
     fs = 1.0 / float(np.median(np.diff(cond.t)))
     if not 0.0 < hz < 0.5 * fs:
         raise GuardidError(f"--parallel-filter: {hz:g} Hz must be in (0, {0.5 * fs:g}) Hz")
     sig = (cond.q, cond.qd, cond.qdd, cond.stiction)
     k, (A_all, y, tau, mask, q, qd, qdd, stuck) = parallel_filter(
-        fs, hz, A_all, y, cond.tau, cond.mask, *sig
+        fs, hz, A_all, y, cond.tau, cond.mask, *sig, decimate=decimate
     )
     t = cond.t[::k]
-    mask = mask & (t >= t[0] + 1.0 / hz) & (t <= t[-1] - 1.0 / hz)
+    usable = cond.t[cond.mask] if cond.mask.any() else cond.t
+    edge = PARALLEL_EDGE_PERIODS / hz
+    mask = mask & (t >= usable[0] + edge) & (t <= usable[-1] - edge)
     note = f"parallel filter {hz:.3g} Hz on the regressor and the torque, then decimation by {k}"
     raw = None if cond.tau_raw is None else cond.tau_raw[::k]
     cond = replace(
@@ -351,13 +358,14 @@ def stacked_rows(
     if options.cutoff_hz is None and options.parallel_filter_hz is None:
         flags = (in_current_units, effort_is_torque, model, free)
         parallel = _auto_parallel(runs, description, used, *flags)
-        used = replace(used, parallel_filter_hz=parallel.hz)
+        if parallel.hz is not None:
+            used = replace(used, parallel_filter_hz=parallel.hz, decimate=parallel.decimate)
     conds, As, ys = [], [], []
     for run in runs:
         c, A, y, _, _ = _condition_run(run, description, used, cutoff, in_current_units,
                                        effort_is_torque, model, free, ff)  # fmt: skip
         if used.parallel_filter_hz:
-            c, A, y = _parallel(c, A, y, free, used.parallel_filter_hz)
+            c, A, y = _parallel(c, A, y, free, used.parallel_filter_hz, used.decimate)
         else:
             A, y = A[c.mask], y[c.mask]
         conds.append(c)
@@ -403,7 +411,8 @@ def _auto_parallel(runs, description, used, in_current_units, effort_is_torque, 
         if hz is None:
             fits = [(A[c.mask], y[c.mask], c.t[c.mask]) for c, A, y, _, _ in off]
         else:
-            fits = [_parallel(c, A, y, free, hz) for c, A, y, _, _ in fine]
+            k = parallel_decimation(fine[0][0], hz)
+            fits = [_parallel(c, A, y, free, hz, k) for c, A, y, _, _ in fine]
             fits = [(A, y, c.t[c.mask]) for c, A, y in fits]
         parts = []
         for (A, y, t), (c, _, _, raw, plain) in zip(fits, off, strict=True):
@@ -416,7 +425,18 @@ def _auto_parallel(runs, description, used, in_current_units, effort_is_torque, 
         y = np.concatenate([f[1] for f in fits])
         return covariance_log_volume(A, y), held_out
 
-    return choose_parallel_filter(used.cutoff_hz, score)
+    choice = choose_parallel_filter(used.cutoff_hz, score)
+    if choice.hz is not None:
+        choice.decimate = parallel_decimation(fine[0][0], choice.hz)
+    return choice
+
+
+def parallel_decimation(cond, hz: float) -> int:
+    """Decimation after an automatic parallel filter at ``hz`` [Hz]: new Nyquist about
+    ``hz``, so that a residual white before the filter stays about white on the kept rows
+    (closer rows would be correlated and least squares' std too small)."""
+    fs = 1.0 / float(np.median(np.diff(cond.t)))
+    return decimation_factor(fs, hz, nyquist_margin=1.0)
 
 
 def covariance_log_volume(A, y) -> float:
