@@ -482,12 +482,16 @@ def _join(conds):
 
 
 def rows_summary(cond) -> str:
-    """'rows: M of N conditioned samples used; dropped: ...' for the report."""
+    """'rows: M of N conditioned samples used; dropped: ...' for the report, then the
+    parallel filter's notes (how it was chosen, the decimation after it), one a line."""
     n, used = len(cond.mask), int(cond.mask.sum())
     why = ", ".join(f"{v} {k}" for k, v in cond.dropped.items() if v)
     dec = f" (after decimation by {cond.decimation})" if cond.decimation > 1 else ""
-    return f"rows: {used} of {n} conditioned samples{dec} used" + (
-        f"; dropped {why}" if why else ""
+    parallel = [note for note in cond.notes if note.startswith("parallel filter")]
+    return (
+        f"rows: {used} of {n} conditioned samples{dec} used"
+        + (f"; dropped {why}" if why else "")
+        + "".join("\n" + note for note in parallel)
     )
 
 
