@@ -86,6 +86,12 @@ def _smooth_joints(description) -> np.ndarray:
     )
 
 
+def _smooth_or_none(description) -> np.ndarray:
+    """(n,) bool: joints without friction or with a friction model smooth at zero velocity
+    (their rows near zero velocity are kept by default)."""
+    return np.array([j.friction is None or j.friction.model != "sign" for j in description.joints])
+
+
 def condition_kwargs(options, fs_hz, cutoff_hz, effort_is_torque, description) -> dict:
     """Keyword arguments of :func:`guardid.conditioning.condition` for ``options`` with the
     cut-off ``cutoff_hz`` [Hz] (every automatic choice resolved; see ConditioningOptions)."""
@@ -392,13 +398,16 @@ def _auto_parallel(runs, description, used, in_current_units, effort_is_torque, 
     runs conditioned under ``used`` (cut-off resolved). Off when some row inside the ends
     was dropped (near zero velocity, stuck): the filter mixes neighbouring samples, so the
     model must hold on every one of them."""
+    off_msg = "parallel filter off: rows near zero velocity were dropped"
+    if used.stiction_threshold is None and not np.all(_smooth_or_none(description)):
+        return ParallelChoice(None, f"{off_msg} (sign friction; the filter would mix them "
+                              "back in)")  # fmt: skip
     flags = (in_current_units, effort_is_torque, model, free, used.friction_filter)
     fine = [_condition_run(r, description, replace(used, decimate=1), used.cutoff_hz, *flags)
             for r in runs]  # fmt: skip
     inside = sum(c.dropped.get(k, 0) for c, *_ in fine for k in c.dropped if "velocity" in k)
     if inside:
-        return ParallelChoice(None, "parallel filter off: rows near zero velocity were "
-                              "dropped (the filter would mix them back in)")  # fmt: skip
+        return ParallelChoice(None, f"{off_msg} (the filter would mix them back in)")
 
     off = [_condition_run(r, description, used, used.cutoff_hz, *flags) for r in runs]
     blocks = max(1, -(-MIN_BLOCKS // len(runs)))
