@@ -31,6 +31,30 @@ def truth() -> dict:
     }  # fmt: skip
 
 
+NAMES = ("ZZ1R", "MX1R", "ZZ2R", "MX2R", "Ia2", "Fv1", "Fc1", "Fv2", "Fc2")
+"""The base parameters of :func:`truth` in guardid's order."""
+
+
+def regressor(q, qd, qdd) -> np.ndarray:
+    """(N, 2, 9) with torque(q, qd, qdd) = regressor @ [truth()[n] for n in NAMES] [N m],
+    worked out by hand from :func:`torque` (the rotor's Ir = Ia2 / gr^2 terms included)."""
+    l1, g, gr = P["l1"], P["g"], P["gr"]
+    c2, s2 = np.cos(q[:, 1]), np.sin(q[:, 1])
+    a1, a2, v1, v2 = qdd[:, 0], qdd[:, 1], qd[:, 0], qd[:, 1]
+    grav12 = g * np.sin(q[:, 0] + q[:, 1])
+    Y = np.zeros((len(q), 2, 9))
+    Y[:, 0, 0] = a1
+    Y[:, 0, 1] = g * np.sin(q[:, 0])
+    Y[:, :, 2] = (a1 + a2)[:, None]
+    Y[:, 0, 3] = l1 * (c2 * (2 * a1 + a2) - s2 * (2 * v1 * v2 + v2**2)) + grav12
+    Y[:, 1, 3] = l1 * (c2 * a1 + s2 * v1**2) + grav12
+    Y[:, 0, 4] = a1 / gr**2 - a2 / gr
+    Y[:, 1, 4] = a2 - a1 / gr
+    Y[:, 0, 5], Y[:, 0, 6] = v1, np.tanh(v1 / V_SCALE)
+    Y[:, 1, 7], Y[:, 1, 8] = v2, np.tanh(v2 / V_SCALE)
+    return Y
+
+
 def torque(q, qd, qdd) -> np.ndarray:
     """The lab's closed-form inverse dynamics (N, 2) [N m] with tanh Coulomb friction."""
     p = P

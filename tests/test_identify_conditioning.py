@@ -6,12 +6,14 @@ import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
-from synthetic import V_SCALE, log, truth
+from synthetic import NAMES, V_SCALE, log, motion, regressor, torque, truth
 
 from guardid.cli import main
 from guardid.conditioning.options import ConditioningOptions
 from guardid.errors import ConfigError
 from guardid.identify import identify
+from guardid.identify.cutoff import choose_parallel_filter, parallel_candidates
+from guardid.identify.rows import covariance_log_volume
 from guardid.robot import load_robot
 from guardid.robot.loader import parse_robot
 
@@ -26,43 +28,55 @@ def robot():
     return parse_robot(data, "synthetic.yaml")
 
 
-# (sample rate [Hz], excitation band [Hz]): every parameter with relative std < 5 % within
-# 2 % of the truth, the truth within 3 std (no option set)
-ACCURATE = [(100, 0.2, 2.0), (500, 0.5, 5.0), (500, 1.0, 10.0), (1000, 0.2, 2.0),
-            (1000, 1.0, 10.0)]  # fmt: skip
-# bands reaching 20 Hz: friction's relative std is 2-4 %, so only the 3-std part holds
-CONSISTENT = [(500, 2.0, 20.0), (1000, 2.0, 20.0)]
+# The issue's bar: synthetic logs at 100 Hz, 500 Hz and 1 kHz, excitation bands 0.2-20 Hz,
+# a 15-bit encoder's quantisation and torque noise (tests/synthetic.py), default conditioning,
+# no option set: every parameter whose relative std is under 5 % lies within 2 % of the
+# truth, and the truth within 3 std. (sample rate [Hz], band's low and high edge [Hz]).
+CASES = [(100, 0.2, 2.0), (500, 0.5, 5.0), (500, 1.0, 10.0), (1000, 0.2, 2.0),
+         (1000, 1.0, 10.0), (500, 2.0, 20.0), (1000, 2.0, 20.0)]  # fmt: skip
+# Asserted here on seeds 1 and 2 of each case. Over seeds 1-15 (bench/bench_synthetic.py, an
+# evaluator in plain numpy) it holds on 103 of these 105 logs, not all: 100 Hz 0.2-2 Hz seed 8
+# (Fv2 -2.40 %, 2.3 std; its rel. std 1.0 %) and 500 Hz 1-10 Hz seed 10 (MX2R +0.08 % at
+# 3.0 std) miss.
+SEEDS = (1, 2)
+
+
+_FITS: dict = {}
 
 
 def _fit(robot, fs, lo, hi, seed=1):
-    t, q, tau = log(fs, lo, hi, seed)
-    r = identify(t, q, tau, robot, methods=("ls",), effort_is_torque=True)
-    ls = r.results["ls"]
-    tr = np.array([truth()[n] for n in r.names])
-    return r, ls, tr
+    """(identification, its LS result, the truth (b,)) of one synthetic log (cached)."""
+    key = (id(robot), fs, lo, hi, seed)
+    if key not in _FITS:
+        t, q, tau = log(fs, lo, hi, seed)
+        r = identify(t, q, tau, robot, methods=("ls",), effort_is_torque=True)
+        _FITS[key] = (r, r.results["ls"], np.array([truth()[n] for n in r.names]))
+    return _FITS[key]
 
 
-@pytest.mark.parametrize("fs,lo,hi", ACCURATE)
-def test_default_conditioning_recovers_the_truth(robot, fs, lo, hi):
-    r, ls, tr = _fit(robot, fs, lo, hi)
-    well = ls.rel_std_pct < 5.0
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("fs,lo,hi", CASES)
+def test_default_conditioning_recovers_the_truth(robot, fs, lo, hi, seed):
+    r, ls, tr = _fit(robot, fs, lo, hi, seed)
+    assert r.names == NAMES
+    well = ls.std / np.abs(ls.theta) < 0.05
     rel = np.abs(ls.theta - tr) / np.abs(tr)
-    errors = (ls.theta - tr) / tr
     report = {
-        n: f"{100 * e:+.2f} % (std {s:.2f} %)"
-        for n, e, s in zip(r.names, errors, ls.rel_std_pct, strict=True)
+        n: f"{100 * e:+.2f} % ({e * t / s:+.1f} std, rel. std {100 * s / abs(t):.2f} %)"
+        for n, e, s, t in zip(r.names, (ls.theta - tr) / tr, ls.std, tr, strict=True)
     }
-    assert well.sum() >= 5, report
-    assert np.all(rel[well] < 0.02), (r.cutoff_hz, report)
-    assert np.all(np.abs(ls.theta - tr)[well] < 3 * ls.std[well]), (r.cutoff_hz, report)
-    assert "held-out error" not in r.cutoff_reason or r.conditioning.cutoff_hz == r.cutoff_hz
+    where = (r.cutoff_hz, r.conditioning.parallel_filter_hz, report)
+    assert well.sum() >= 5, where
+    assert np.all(rel[well] < 0.02), where
+    assert np.all(np.abs(ls.theta - tr)[well] < 3 * ls.std[well]), where
 
 
-@pytest.mark.parametrize("fs,lo,hi", CONSISTENT)
-def test_wide_band_truth_within_three_std(robot, fs, lo, hi):
-    r, ls, tr = _fit(robot, fs, lo, hi)
-    well = ls.rel_std_pct < 5.0
-    assert np.all(np.abs(ls.theta - tr)[well] < 3 * ls.std[well])
+def test_synthetic_regressor_is_the_closed_form_model():
+    """The hand-derived regressor (the bench's oracle) reproduces the closed-form torque."""
+    t = np.arange(0.0, 5.0, 0.002)
+    q, qd, qdd = motion(t, 0.5, 5.0, 3)
+    theta = np.array([truth()[n] for n in NAMES])
+    np.testing.assert_allclose(regressor(q, qd, qdd) @ theta, torque(q, qd, qdd), atol=1e-12)
 
 
 def test_cutoff_follows_the_data_not_a_constant(robot):
@@ -75,6 +89,65 @@ def test_cutoff_follows_the_data_not_a_constant(robot):
     for r in (slow, fast):
         assert "cross-validation" in r.cutoff_reason
         assert r.rows_summary.startswith("rows: ")
+
+
+def test_parallel_filter_chosen_where_every_row_obeys_the_model(robot):
+    """Smooth friction, every row kept: a parallel filter below the positions' cut-off (the
+    20 Hz band's differentiated encoder noise removed); sign friction, rows near zero
+    velocity dropped: no parallel filter (it would mix those rows back in)."""
+    r, _, _ = _fit(robot, 500, 2.0, 20.0)
+    pf = r.conditioning.parallel_filter_hz
+    assert pf is not None and pf < r.cutoff_hz, r.notes
+    assert any(n.startswith(f"parallel filter {pf:g} Hz on the regressor") for n in r.notes)
+    data = yaml.safe_load(open(load_robot("dfki_double_pendulum").source, encoding="utf-8"))
+    for j in data["joints"]:
+        j["friction"]["model"] = "sign"
+        del j["friction"]["velocity_scale"]
+    sign = parse_robot(data, "sign.yaml")
+    r, _, _ = _fit(sign, 500, 0.5, 5.0)
+    assert r.conditioning.parallel_filter_hz is None
+    assert any("parallel filter off: rows near zero velocity" in n for n in r.notes), r.notes
+
+
+def test_parallel_filter_is_exact_on_noise_free_data(robot):
+    """Without noise the parallel-filtered rows obey the model exactly (the filter's reach
+    past the first stage's ends is dropped): every parameter within 0.05 % of the truth."""
+    t = np.arange(0.0, 20.0, 0.001)
+    q, qd, qdd = motion(t, 1.0, 10.0, 2)
+    o = ConditioningOptions(cutoff_hz=25.0, parallel_filter_hz=8.0)
+    r = identify(t, q, torque(q, qd, qdd), robot, methods=("ls",), effort_is_torque=True,
+                 conditioning=o)  # fmt: skip
+    tr = np.array([truth()[n] for n in r.names])
+    err = np.abs(r.results["ls"].theta - tr) / tr
+    assert np.all(err < 5e-4), dict(zip(r.names, err, strict=True))
+
+
+def test_parallel_filter_rule():
+    """choose_parallel_filter on scores worked out by hand (log variance per parameter,
+    held-out error): the most precise candidate whose held-out error is within 2 % of
+    off's, and only when it divides the variances by at least 2."""
+    cands = parallel_candidates(10.0)
+    assert cands[0] == 0.63 and cands[-1] == 10.0  # R10 from 10 / 16 = 0.625 Hz up
+    gains = {None: (1.0, 0.300), 4.0: (3.0, 0.309), 2.0: (2.5, 0.305), 1.0: (2.2, 0.30)}
+
+    def score(hz):
+        g, held = gains.get(hz, (1.1, 0.3))
+        return -np.log(g), held
+
+    assert choose_parallel_filter(10.0, score).hz == 2.0  # 4 Hz: held-out 3 % worse
+    gains[2.0] = gains[1.0] = (1.5, 0.3)
+    choice = choose_parallel_filter(10.0, score)
+    assert choice.hz is None and "1.50 x only" in choice.reason
+
+
+def test_covariance_log_volume_is_the_least_squares_covariance():
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(200, 2, 3)) * np.array([1.0, 10.0, 0.01])
+    y = A @ np.array([1.0, -2.0, 30.0]) + rng.normal(0.0, 0.1, (200, 2))
+    a, b = A.reshape(-1, 3), y.reshape(-1)
+    res = b - a @ np.linalg.solve(a.T @ a, a.T @ b)
+    cov = res @ res / (len(b) - 3) * np.linalg.inv(a.T @ a)
+    assert covariance_log_volume(A, y) == pytest.approx(np.log(np.linalg.det(cov)) / 3, abs=1e-9)
 
 
 def test_options_round_trip_and_errors():

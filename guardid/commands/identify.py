@@ -129,7 +129,9 @@ _POSITIVE = _PositiveFinite()
 
 _PARALLEL_HELP = (
     "Gautier's parallel filter: low-pass the regressor and the torque at HZ [Hz] after the "
-    "cut-off filter, then decimate (docs/FOREIGN_LOGS.md) [default: off]."
+    "cut-off filter, then decimate (docs/FOREIGN_LOGS.md) [default: chosen from the data "
+    "when --cutoff is not given and every row obeys the model (docs/VALIDATION.md), else "
+    "off; 0 = off]."
 )
 _CUTOFF_HELP = (
     "Low-pass cut-off on positions and efforts [Hz] [default: chosen from the data by "
@@ -364,7 +366,8 @@ def _cross_validate(logs, runs, description, methods, options, current_units, be
     "parallel_hz",
     type=float,
     default=None,
-    help="Parallel filter [Hz] [default: the first params file's conditioning, else off].",
+    help="Parallel filter [Hz] [default: the first params file's conditioning, else chosen "
+    "from the logs with the cut-off; 0 = off].",
 )
 @click.option(
     "--report",

@@ -20,7 +20,8 @@ class ConditioningOptions:
 
     cutoff_hz : zero-phase Butterworth cut-off on positions and efforts [Hz]; None = chosen
         from the data (cross-validated among candidates).
-    decimate : keep every k-th conditioned sample; None = new Nyquist >= about the cut-off.
+    decimate : keep every k-th conditioned sample (with a parallel filter: every k-th
+        sample after it); None = new Nyquist >= about the cut-off (the parallel filter's).
     stiction_threshold : rows with some |qd_j| below it are dropped [rad/s or m/s]; None =
         5 % of the peak speed for sign friction, 0 (keep every row) for smooth friction models.
     stiction_guard_s : also drop rows within this time of such a sample [s]; None = 0.6

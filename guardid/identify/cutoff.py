@@ -43,6 +43,9 @@ R10 = (1.0, 1.25, 1.6, 2.0, 2.5, 3.15, 4.0, 5.0, 6.3, 8.0)
 SPAN = 16.0
 """Highest candidate = this x the motion's bandwidth (or 0.4 x Nyquist if lower) [-]."""
 MIN_BLOCKS = 4
+MIN_VARIANCE_GAIN = 2.0
+"""A parallel filter is used only when it divides the geometric mean of the parameters'
+variances by at least this [-] (a factor 2 in variance, sqrt 2 in standard deviation)."""
 TOLERANCE = 0.02
 """A lower candidate whose score is within this fraction of the best one is preferred [-]."""
 
@@ -134,3 +137,75 @@ def choose_cutoff_cv(runs, score_fn, fs_hz: float, highest_harmonic_hz=None) -> 
     if filters[best]:
         why += "; the Coulomb columns low-passed like the effort predicted it better"
     return CutoffChoice(cands[best], why, cands, list(scores), list(thetas), bandwidth, filters)
+
+
+@dataclass
+class ParallelChoice:
+    """The parallel filter's cut-off [Hz] (None: off), why, and every candidate's
+    log-determinant of the estimate's covariance (None stands for "off")."""
+
+    hz: float | None
+    reason: str
+    candidates: list = field(default_factory=list)
+    scores: list[float] = field(default_factory=list)
+    decimate: int | None = None
+
+
+def parallel_candidates(cutoff_hz: float) -> list[float]:
+    """Preferred numbers (R10) from cutoff_hz / :data:`SPAN` (at least the 0.5 Hz floor) to
+    cutoff_hz [Hz]: the parallel filter's candidates below the positions' cut-off."""
+    low = max(MIN_CUTOFF_HZ, cutoff_hz / SPAN)
+    return [c for c in candidate_cutoffs(low, cutoff_hz) if c <= cutoff_hz]
+
+
+def choose_parallel_filter(cutoff_hz: float, score_fn) -> ParallelChoice:
+    """The parallel filter (Gautier) that makes the estimate most precise.
+
+    Parallel filtering low-passes the regressor's columns and the effort with one filter
+    after the regressor was computed, so the model's equation holds on the filtered rows
+    whatever that filter's cut-off, even one inside the excitation's band (it only drops
+    information). What it removes is the differentiated encoder noise in the
+    accelerations, whose power grows as f^4 up to the positions' cut-off: in a band where
+    every harmonic carries the same acceleration, the low harmonics carry the most precise
+    rows. No cut-off is then biased, so the one whose least-squares covariance is smallest
+    (lowest log-determinant: D-optimality, independent of the parameters' units) is taken;
+    "off" (the rows at the positions' cut-off as they are) is a candidate too.
+
+    Real joints are not the model, though, and a parallel filter shifts weight between
+    frequencies: a candidate whose estimate predicts the measured effort of held-out time
+    blocks more than :data:`TOLERANCE` worse than "off" does (the cross-validation of the
+    cut-off, same blocks) is not taken.
+
+    And a parallel filter only pays where the differentiated noise dominates the rows'
+    residual: it is taken only when it shrinks the geometric mean of the parameters'
+    variances by at least :data:`MIN_VARIANCE_GAIN` (where the residual is mostly model
+    error in the excitation's band, as on measured joints, the gain is small and the
+    rows stay as they are).
+
+    ``score_fn(hz)`` returns (log-determinant per parameter [-] of the covariance,
+    held-out relative rms error [-]) for the parallel filter at ``hz`` [Hz] (None: off),
+    NaN when not fitted.
+    """
+    cands = [None, *parallel_candidates(cutoff_hz)]
+    pairs = [score_fn(hz) for hz in cands]
+    scores = [float(p[0]) for p in pairs]
+    held = np.array([float(p[1]) for p in pairs])
+    s = np.asarray(scores, dtype=float)
+    ok = np.isfinite(s) & np.isfinite(held)
+    if np.isfinite(held[0]):
+        ok &= held <= (1.0 + TOLERANCE) * held[0]
+    span = f"{len(cands) - 1} candidates from {cands[1]:g} to {cands[-1]:g} Hz and off"
+    if not np.any(ok):
+        return ParallelChoice(None, f"parallel filter off (none of {span} could be fitted)",
+                              cands, scores)  # fmt: skip
+    best = int(np.flatnonzero(ok)[np.argmin(s[ok])])
+    hz = cands[best]
+    gain = float(np.exp(s[0] - s[best])) if np.isfinite(s[0]) else math.inf
+    if hz is None or gain < MIN_VARIANCE_GAIN:
+        return ParallelChoice(None, f"parallel filter off: the best of {span} shrinks the "
+                              f"variances by {gain:.2f} x only (< {MIN_VARIANCE_GAIN:g} x)",
+                              cands, scores)  # fmt: skip
+    why = (f"parallel filter {hz:g} Hz on the regressor and the effort: the smallest "
+           f"covariance of {span} (variances {gain:.3g} x smaller than off, geometric "
+           f"mean), held-out error within {100 * TOLERANCE:g} % of off's")  # fmt: skip
+    return ParallelChoice(hz, why, cands, scores)

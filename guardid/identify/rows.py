@@ -18,7 +18,13 @@ from guardid.conditioning.parallel import parallel_filter
 from guardid.conditioning.stiction import guard_periods
 from guardid.dynamics import build_model
 from guardid.errors import GuardidError
-from guardid.identify.cutoff import CutoffChoice, choose_cutoff_cv
+from guardid.identify.cutoff import (
+    MIN_BLOCKS,
+    CutoffChoice,
+    ParallelChoice,
+    choose_cutoff_cv,
+    choose_parallel_filter,
+)
 
 STICTION_GUARD_SHARE = 0.95
 """guardid logs: rows closer to a stuck / reversing sample than the span that holds this
@@ -41,6 +47,10 @@ MOST_ROWS_DROPPED = 0.25
 """Warn when fewer than this fraction of the conditioned samples are usable [-] (a robot with
 stick/slip loses more than half of them to the stiction guard as a matter of course: the
 guard robot's optimised excitation keeps 38 %)."""
+PARALLEL_EDGE_PERIODS = 3.0
+"""The parallel filter spreads the rows at the ends (filter transients, stencil edges) over
+about this many of its periods: rows that close to the first-stage's ends are dropped [-]
+(the padding of :func:`~guardid.conditioning.filters.zero_phase_lowpass` too)."""
 POWER_BEYOND_CUTOFF = 0.1
 """Warn when the low-pass removes more than this fraction of the effort's power [-]."""
 
@@ -91,6 +101,12 @@ def _smooth_joints(description) -> np.ndarray:
     return np.array(
         [j.friction is not None and j.friction.model != "sign" for j in description.joints]
     )
+
+
+def _smooth_or_none(description) -> np.ndarray:
+    """(n,) bool: joints without friction or with a friction model smooth at zero velocity
+    (their rows near zero velocity are kept by default)."""
+    return np.array([j.friction is None or j.friction.model != "sign" for j in description.joints])
 
 
 def condition_kwargs(options, fs_hz, cutoff_hz, effort_is_torque, description) -> dict:
@@ -285,18 +301,21 @@ def friction_columns(model, free) -> list[int]:
     return [i for i, n in enumerate(names) if n.startswith(("Fc", "Fs")) and n[2:] in smooth]
 
 
-def _parallel(cond, A_all, y, free, hz):
+def _parallel(cond, A_all, y, free, hz, decimate=None):
     """Gautier's parallel filter at ``hz`` [Hz] on the regressor and the torque of every
-    conditioned sample, then decimation (docs/FOREIGN_LOGS.md)."""
+    conditioned sample, then decimation by ``decimate`` (default: new Nyquist >= 2 hz;
+    docs/FOREIGN_LOGS.md)."""
     fs = 1.0 / float(np.median(np.diff(cond.t)))
     if not 0.0 < hz < 0.5 * fs:
         raise GuardidError(f"--parallel-filter: {hz:g} Hz must be in (0, {0.5 * fs:g}) Hz")
     sig = (cond.q, cond.qd, cond.qdd, cond.stiction)
     k, (A_all, y, tau, mask, q, qd, qdd, stuck) = parallel_filter(
-        fs, hz, A_all, y, cond.tau, cond.mask, *sig
+        fs, hz, A_all, y, cond.tau, cond.mask, *sig, decimate=decimate
     )
     t = cond.t[::k]
-    mask = mask & (t >= t[0] + 1.0 / hz) & (t <= t[-1] - 1.0 / hz)
+    usable = cond.t[cond.mask] if cond.mask.any() else cond.t
+    edge = PARALLEL_EDGE_PERIODS / hz
+    mask = mask & (t >= usable[0] + edge) & (t <= usable[-1] - edge)
     note = f"parallel filter {hz:.3g} Hz on the regressor and the torque, then decimation by {k}"
     raw = None if cond.tau_raw is None else cond.tau_raw[::k]
     cond = replace(
@@ -429,12 +448,18 @@ def stacked_rows(
     if ff is None:
         ff = bool(choice.friction_filter) if choice is not None else False
     used = replace(options, cutoff_hz=float(cutoff), friction_filter=ff)
+    parallel = None
+    if options.cutoff_hz is None and options.parallel_filter_hz is None:
+        flags = (in_current_units, effort_is_torque, model, free)
+        parallel = _auto_parallel(runs, description, used, *flags)
+        if parallel.hz is not None:
+            used = replace(used, parallel_filter_hz=parallel.hz, decimate=parallel.decimate)
     conds, As, ys = [], [], []
     for run in runs:
         c, A, y, _, _ = _condition_run(run, description, used, cutoff, in_current_units,
                                        effort_is_torque, model, free, ff)  # fmt: skip
         if used.parallel_filter_hz:
-            c, A, y = _parallel(c, A, y, free, used.parallel_filter_hz)
+            c, A, y = _parallel(c, A, y, free, used.parallel_filter_hz, used.decimate)
         else:
             A, y = A[c.mask], y[c.mask]
         conds.append(c)
@@ -449,9 +474,86 @@ def stacked_rows(
     joined = _join(conds)
     if choice is not None:
         joined.notes.insert(0, f"cut-off {cutoff:g} Hz: {choice.reason}")
+        if parallel is not None:
+            joined.notes.insert(1, parallel.reason)
     else:
         joined.notes.insert(0, f"cut-off {cutoff:g} Hz set by the caller")
     return Rows(joined, A, y, used, choice, _doubts(conds, choice))
+
+
+def _auto_parallel(runs, description, used, in_current_units, effort_is_torque, model, free):
+    """The parallel filter chosen from the data (:func:`choose_parallel_filter`) for the
+    runs conditioned under ``used`` (cut-off resolved). Off when some row inside the ends
+    was dropped (near zero velocity, stuck): the filter mixes neighbouring samples, so the
+    model must hold on every one of them."""
+    off_msg = "parallel filter off: rows near zero velocity were dropped"
+    if used.stiction_threshold is None and not np.all(_smooth_or_none(description)):
+        return ParallelChoice(None, f"{off_msg} (sign friction; the filter would mix them "
+                              "back in)")  # fmt: skip
+    flags = (in_current_units, effort_is_torque, model, free, used.friction_filter)
+    fine = [_condition_run(r, description, replace(used, decimate=1), used.cutoff_hz, *flags)
+            for r in runs]  # fmt: skip
+    inside = sum(c.dropped.get(k, 0) for c, *_ in fine for k in c.dropped if "velocity" in k)
+    if inside:
+        return ParallelChoice(None, f"{off_msg} (the filter would mix them back in)")
+
+    off = [_condition_run(r, description, used, used.cutoff_hz, *flags) for r in runs]
+    blocks = max(1, -(-MIN_BLOCKS // len(runs)))
+
+    def block_of(t, c):
+        span = max(float(c.t[-1] - c.t[0]), 1e-300)
+        return np.minimum(((t - c.t[0]) / span * blocks).astype(int), blocks - 1)
+
+    def score(hz):
+        if hz is None:
+            fits = [(A[c.mask], y[c.mask], c.t[c.mask]) for c, A, y, _, _ in off]
+        else:
+            k = parallel_decimation(fine[0][0], hz)
+            fits = [_parallel(c, A, y, free, hz, k) for c, A, y, _, _ in fine]
+            fits = [(A, y, c.t[c.mask]) for c, A, y in fits]
+        parts = []
+        for (A, y, t), (c, _, _, raw, plain) in zip(fits, off, strict=True):
+            fit_block, eval_block = block_of(t, c), block_of(c.t, c)
+            for b in range(blocks):
+                ev = c.mask & (eval_block == b)
+                parts.append((b, A[fit_block == b], y[fit_block == b], plain[ev], raw[ev]))
+        held_out, _ = _kfold(parts, min_rows=3 * len(free))
+        A = np.concatenate([f[0] for f in fits])
+        y = np.concatenate([f[1] for f in fits])
+        return covariance_log_volume(A, y), held_out
+
+    choice = choose_parallel_filter(used.cutoff_hz, score)
+    if choice.hz is not None:
+        choice.decimate = parallel_decimation(fine[0][0], choice.hz)
+    return choice
+
+
+def parallel_decimation(cond, hz: float) -> int:
+    """Decimation after an automatic parallel filter at ``hz`` [Hz]: new Nyquist about
+    ``hz``, so that a residual white before the filter stays about white on the kept rows
+    (closer rows would be correlated and least squares' std too small)."""
+    fs = 1.0 / float(np.median(np.diff(cond.t)))
+    return decimation_factor(fs, hz, nyquist_margin=1.0)
+
+
+def covariance_log_volume(A, y) -> float:
+    """log det(s^2 (A^T A)^-1) / p for the rows A (M, n, p), y (M, n): the log of the
+    geometric mean of the least-squares estimate's variances (the covariance's volume per
+    parameter) [-]; NaN when rank-deficient or with at most 3 p rows."""
+    p = A.shape[-1]
+    a, b = A.reshape(-1, p), y.reshape(-1)
+    if len(b) <= 3 * p:
+        return np.nan
+    d = np.sqrt(np.sum(a * a, axis=0))
+    if np.any(d == 0):
+        return np.nan
+    x, *_ = np.linalg.lstsq(a / d, b, rcond=None)
+    r = b - (a / d) @ x
+    s2 = float(r @ r) / (len(b) - p)
+    sign, logdet = np.linalg.slogdet((a / d).T @ (a / d))
+    if sign <= 0 or s2 <= 0:
+        return np.nan
+    return float(np.log(s2) - (logdet + 2.0 * np.sum(np.log(d))) / p)
 
 
 def _join(conds):
@@ -477,12 +579,16 @@ def _join(conds):
 
 
 def rows_summary(cond) -> str:
-    """'rows: M of N conditioned samples used; dropped: ...' for the report."""
+    """'rows: M of N conditioned samples used; dropped: ...' for the report, then the
+    parallel filter's notes (how it was chosen, the decimation after it), one a line."""
     n, used = len(cond.mask), int(cond.mask.sum())
     why = ", ".join(f"{v} {k}" for k, v in cond.dropped.items() if v)
     dec = f" (after decimation by {cond.decimation})" if cond.decimation > 1 else ""
-    return f"rows: {used} of {n} conditioned samples{dec} used" + (
-        f"; dropped {why}" if why else ""
+    parallel = [note for note in cond.notes if note.startswith("parallel filter")]
+    return (
+        f"rows: {used} of {n} conditioned samples{dec} used"
+        + (f"; dropped {why}" if why else "")
+        + "".join("\n" + note for note in parallel)
     )
 
 
