@@ -66,15 +66,14 @@ def test_offsets_declared_absent_are_not_identified(result):
 
 @pytest.mark.parametrize("method", ["ls", "wls"])
 def test_well_determined_parameters_and_all_within_3_sigma(result, truth, method):
-    """Every parameter within 3 std of the truth; the well-determined ones (under 5 %
-    relative std) within 5 %. (A "within 2 %" bar for those is not a property of a sound
-    estimator: a parameter at 2-5 % relative std misses 2 % at ordinary 1-3 std scatter, on
-    about two seeds in three; the calibration over seeds is bench/bench_std_check.py's.)"""
+    """At least 8 parameters under 5 % relative std (inertias, gravity, the four friction
+    parameters) and every parameter within 3 std of the truth. No fixed percentage bar: a
+    parameter at 2-5 % relative std misses 2 % at ordinary 1-3 std scatter on about two
+    seeds in three, and even the excitation differs in its last digits with the BLAS thread
+    count (a 5 % bar held with one and failed by 0.06 % with the other); the calibration
+    over seeds is bench/bench_std_check.py's."""
     r = result.results[method]
-    good = r.rel_std_pct < 5.0
-    assert good.sum() >= 8  # inertias, gravity and all four friction parameters
-    err = np.abs(r.theta - truth) / np.abs(np.where(truth == 0, 1.0, truth))
-    assert np.all(err[good] < 0.05), dict(zip(np.array(result.names)[good], err[good], strict=True))
+    assert (r.rel_std_pct < 5.0).sum() >= 8
     z = (r.theta - truth) / r.std
     assert np.all(np.abs(z) < 3.0), dict(zip(result.names, np.round(z, 2), strict=True))
 
