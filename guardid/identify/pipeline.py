@@ -235,10 +235,12 @@ def identify(
             if hopfield_settle:  # labelled as what it is: the equilibrium, not the network's
                 results["hopfield-eq"] = _result("hopfield-eq", eq, A, y, cond.t[cond.mask])
                 results["hopfield-eq"].settings = {"equilibrium_of": "hopfield", "beta": beta}
+    ref = reference_method(results)
+    rel_std = results[ref].rel_std_pct if ref is not None else ls.rel_std_
     warnings = [
         f"{name}: relative standard deviation {r:.0f} % (poorly identifiable; "
         "a richer excitation or a longer run would help)"
-        for name, r in zip(names, ls.rel_std_, strict=True)
+        for name, r in zip(names, rel_std, strict=True)
         if r > POOR_REL_STD_PCT
     ]
     warnings += rows.warnings + _moving_with_cutoff(rows.choice, names, ls)
