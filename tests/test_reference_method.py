@@ -33,3 +33,23 @@ def test_the_html_verdict_names_the_reference_method():
 
     sentence, _ = verdict(Result())
     assert "(WLS," in sentence
+
+
+def test_the_html_table_says_which_method_it_rests_on():
+    from guardid.report.html import parameter_table
+
+    def full(method):
+        r = _result(method)
+        r.rel_std_pct = np.full(2, 10.0)
+        r.d_tau = 0.01
+        return r
+
+    class Result:
+        names = ("a", "b")
+        formulas = ("a", "b")
+        nominal = np.ones(2)
+        results = {"ls": full("ls"), "wls": full("wls")}
+
+    assert "use WLS, guardid's reference method" in parameter_table(Result())
+    Result.results = {"ls": full("ls")}
+    assert "use LS." in parameter_table(Result())

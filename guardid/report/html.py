@@ -287,6 +287,14 @@ def parameter_table(result, reference=None, reference_label="reference") -> str:
         f"deviation: green up to {GOOD_REL_STD_PCT:g} %, amber up to {POOR_REL_STD_PCT:g} %, "
         "red beyond; full width is 20 %."
     )
+    if base.method == "wls":
+        caption += (
+            " The bar and the verdict use WLS, guardid's reference method: its standard "
+            "deviations matched the spread of its estimates over seeds (bench/bench_std_check.py)"
+            "; LS pools one noise level over joints whose residuals differ several-fold."
+        )
+    elif base.std is not None:
+        caption += f" The bar and the verdict use {_esc(base.method.upper())}."
     if reference:
         caption += f" (&sigma;): the estimate's distance from the {_esc(reference_label)} in std."
     return _wide_table(rows) + f"<p class='caption'>{caption}</p>"
