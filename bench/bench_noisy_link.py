@@ -25,7 +25,7 @@ from click.testing import CliRunner
 from cobs import cobs
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from linktools import Recorder, teed_devices  # noqa: E402
+from linktools import BothWays, teed_devices  # noqa: E402
 
 import guardid.link  # noqa: E402
 from guardid.cli import main  # noqa: E402
@@ -71,18 +71,6 @@ def damage(clean: bytes, delivered: bytes, first_tick: int, n_ticks: int) -> dic
         "seq_gaps": len(lost_between),
         "lost_rows": lost_rows,
     }
-
-
-class BothWays(Recorder):
-    """A port proxy that keeps every byte the host read and every byte it wrote."""
-
-    def __init__(self, port) -> None:
-        super().__init__(port)
-        self.sent = bytearray()
-
-    def write(self, data) -> int:
-        self.sent += data
-        return self._port.write(data)
 
 
 def resends(host_bytes: bytes) -> int:

@@ -46,6 +46,18 @@ class Recorder:
         return getattr(self._port, name)
 
 
+class BothWays(Recorder):
+    """A port proxy that keeps every byte the host read and every byte it wrote."""
+
+    def __init__(self, port) -> None:
+        super().__init__(port)
+        self.sent = bytearray()
+
+    def write(self, data) -> int:
+        self.sent += data
+        return self._port.write(data)
+
+
 class Tee:
     """Wraps a device to keep the clean bytes it sent (before the link's faults)."""
 

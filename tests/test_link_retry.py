@@ -16,7 +16,7 @@ from types import SimpleNamespace
 
 import pytest
 from click.testing import CliRunner
-from linktools import Recorder, Sines, expected_damage, teed_devices
+from linktools import BothWays, Recorder, Sines, expected_damage, teed_devices
 from test_firmware_emulator import SpeedPlant
 
 from guardid.capture import capture
@@ -244,7 +244,7 @@ def gaps_between_delivered(clean: bytes, lost: list[bytes]) -> int:
 
 def test_noisy_capture_resends_and_streams_each_setpoint_once(tmp_path):
     """Seed 0 loses the PONG at start-up: the PING is resent; every setpoint is sent once."""
-    port = HostBytes(open_port(NOISY.format(0)))
+    port = BothWays(open_port(NOISY.format(0)))
     try:
         session = Session(port, timeout_s=1.0)
         session.handshake()
@@ -257,18 +257,6 @@ def test_noisy_capture_resends_and_streams_each_setpoint_once(tmp_path):
     assert len(pings) == 1 + session.resends and len(set(pings)) == 1
     ticks = [m.tick for m in sent if type(m) is M["SETPOINT"]]
     assert len(ticks) == len(set(ticks)) == ticks[-1] - ticks[0] + 1
-
-
-class HostBytes(Recorder):
-    """A port proxy that also keeps every byte the host wrote."""
-
-    def __init__(self, port) -> None:
-        super().__init__(port)
-        self.sent = bytearray()
-
-    def write(self, data) -> int:
-        self.sent += data
-        return self._port.write(data)
 
 
 def test_upstream_damage_is_survived(tmp_path):
