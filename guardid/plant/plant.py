@@ -517,13 +517,10 @@ def encoder_phase_q0(description, seed: int) -> list[float]:
     seed of a closed-loop run would share the same quantisation error and the same motion.
     """
     rng = random.Random(f"encoder-phase-{seed}")
-    q0 = []
-    for joint in description.joints:
-        enc, drive = joint.encoder, joint.drive
-        gear = drive.gear_ratio if drive is not None else 1.0
-        per_rad = gear * enc.counts_per_rev / (2.0 * math.pi) if enc is not None else 0.0
-        q0.append(rng.random() / per_rad if per_rad else 0.0)
-    return q0
+    return [
+        rng.random() / jc.counts_per_rad if jc.counts_per_rad else 0.0
+        for jc in joint_constants(description, friction=True, limits=True)
+    ]
 
 
 def make_plant(description, options) -> Plant:
