@@ -1,6 +1,7 @@
 """Where the closed-loop bias of identify's estimates comes from (issue 19, evidence).
 
-Per seed, one capture through ``sim://guard?seed=N`` (lock-step, noise on) in this process,
+Per seed, one capture through ``sim://guard?seed=N&phase=1`` (``--fixed-phase``: without
+``phase``; lock-step, noise on) in this process,
 with the plant's true state recorded tick by tick (a wrapper around ``Plant.step_sensors``:
 true joint angles and the true period-mean motor current). Then the same identification
 (``guardid.identify.identify`` with the log's automatic conditioning, resolved once on the
@@ -16,7 +17,7 @@ reported std), and in brackets the rms over seeds. The truth is the simulator's 
 the statistics are a few lines of numpy here, not guardid's.
 
     python bench/bench_bias_sources.py [--seeds 6] [--duration 60] [--method ls]
-                                       [--excitations default,tracking]
+                                       [--excitations default,tracking] [--fixed-phase]
 """
 
 from __future__ import annotations
@@ -53,12 +54,13 @@ def _cli(*args) -> None:
             raise
 
 
-def capture_with_truth(traj: Path, seed: int, duration: float, log: Path):
-    """Capture ``log``; return (run, true q (N, 2) [rad], true current (N, 2) [A])."""
+def capture_with_truth(traj: Path, seed: int, duration: float, log: Path, phase: bool = True):
+    """Capture ``log``; return (run, true q (N, 2) [rad], true current (N, 2) [A]).
+    ``phase``: the seed also places the start pose within an encoder count (``phase=1``)."""
     _TRUTH.clear()
     plant_module.Plant.step_sensors = _recording_step
     try:
-        port = f"sim://guard?seed={seed}"
+        port = f"sim://guard?seed={seed}" + ("&phase=1" if phase else "")
         _cli("capture", "--trajectory", str(traj), "--duration", f"{duration:g}",
              "--port", port, "--quiet", "--force", "-o", str(log))  # fmt: skip
     finally:
@@ -76,6 +78,11 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=60.0, help="capture length [s]")
     ap.add_argument("--method", default="ls", help="ls or wls")
     ap.add_argument("--excitations", default="default,tracking")
+    ap.add_argument(
+        "--fixed-phase",
+        action="store_true",
+        help="leave phase=1 out: every seed starts at the same encoder phase",
+    )
     a = ap.parse_args()
     desc = load_robot("guard")
     model = build_model(desc)
@@ -89,7 +96,8 @@ def main() -> None:
             z: dict[str, list] = {}
             for seed in range(a.seeds):
                 run, q_true, i_true = capture_with_truth(traj, seed, a.duration,
-                                                         work / f"{exc}_{seed}.csv")  # fmt: skip
+                                                         work / f"{exc}_{seed}.csv",
+                                                         not a.fixed_phase)  # fmt: skip
                 hh = run.highest_harmonic_hz
                 ref = identify(run.t, run.q, run.current, desc, methods=(m,),
                                highest_harmonic_hz=hh)  # fmt: skip

@@ -24,8 +24,10 @@ class ConditioningOptions:
         sample after it); None = new Nyquist >= about the cut-off (the parallel filter's).
     stiction_threshold : rows with some |qd_j| below it are dropped [rad/s or m/s]; None =
         5 % of the peak speed for sign friction, 0 (keep every row) for smooth friction models.
-    stiction_guard_s : also drop rows within this time of such a sample [s]; None = 0.6
-        cut-off periods for guardid logs (stick/slip), 0 for measured-torque logs.
+    stiction_guard_s : also drop rows within this time of such a sample [s]; None = the span
+        holding 95 % of the low-pass's impulse response for guardid logs (stick/slip; 1.04
+        cut-off periods at order 4, :data:`guardid.identify.rows.STICTION_GUARD_SHARE`), 0
+        for measured-torque logs.
     flat_is_stuck : flag samples without an encoder count in the period; None = guardid logs.
     parallel_filter_hz : Gautier's parallel filter on the regressor and the torque [Hz];
         None = off.
