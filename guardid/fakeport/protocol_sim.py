@@ -191,6 +191,10 @@ class Serial(SerialBase):
             return
         limit = MAX_BLOCK_S if self._timeout is None else self._timeout
         deadline = engine.now_ns + round(limit * 1e9)
+        if engine.clean and self._timeout is not None:  # only device ticks can happen
+            if not engine.tick_until_output(size, deadline):
+                engine.advance_to(deadline)
+            return
         while len(engine.rx) < size and not engine.disconnected:
             e = engine.next_event_ns()
             if self._timeout is None and self._idle_forever():

@@ -112,6 +112,8 @@ class FirmwareEmulator:
         self.pwm_levels = [(1 << j.drive.pwm_bits) - 1 for j in joints]
         self.limits = [self._count_limits(j, c) for j, c in zip(joints, self.cpr, strict=True)]
         self.pids = [FixedPid(s) for s in self.supply_mv]
+        # per joint, for the tick: (count limits or None, PWM levels, supply [mV])
+        self._per_joint = list(zip(self.limits, self.pwm_levels, self.supply_mv, strict=True))
         for pid, joint, cpr in zip(self.pids, joints, self.cpr, strict=True):
             if joint.pid is not None:
                 gains = [int(round(g * 1e6)) for g in (joint.pid.kp, joint.pid.ki, joint.pid.kd)]
@@ -312,14 +314,14 @@ class FirmwareEmulator:
         self.tick = tick = (self.tick + 1) & TICK_MASK
         self.counts = counts
         status = 0
-        moving = self.mode != IDLE
-        silent_ms = ((self.tick - self.last_host_tick) & TICK_MASK) * self.tick_us // 1000
-        if moving and silent_ms >= self.watchdog_ms:
+        mode = self.mode
+        silent_ms = ((tick - self.last_host_tick) & TICK_MASK) * self.tick_us // 1000
+        if mode != IDLE and silent_ms >= self.watchdog_ms:
             self.watchdog_tripped = True
-            self._enter_mode(MODE["idle"])
-            self._send(M["FAULT"](self.tick, FAULT["watchdog"], 0xFF, silent_ms))
-            moving = False
-        if self.mode == POSITION:
+            self._enter_mode(IDLE)
+            self._send(M["FAULT"](tick, FAULT["watchdog"], 0xFF, silent_ms))
+            mode = IDLE
+        if mode == POSITION:
             due = False
             buffer = self.buffer
             # tick_diff(buffer[0][0], tick) <= 0, inlined (serial u32 arithmetic)
@@ -334,19 +336,26 @@ class FirmwareEmulator:
                 out.append(pid.step(setpoint[j], counts[j]))
                 if pid.saturated:
                     status |= SATURATED_BITS[j]
-        elif self.mode == VOLTAGE:
+        elif mode == VOLTAGE:
             out = [
                 max(-s, min(s, v)) for v, s in zip(self.voltage_cmd_mv, self.supply_mv, strict=True)
             ]
         else:
             out = [0] * self.n
-        for j, lim in enumerate(self.limits):
-            if lim is None:
-                continue
-            if (counts[j] >= lim[1] and out[j] > 0) or (counts[j] <= lim[0] and out[j] < 0):
-                out[j] = 0
+        applied = []
+        for j, (lim, levels, supply) in enumerate(self._per_joint):
+            mv = out[j]
+            if lim is not None and (
+                (mv > 0 and counts[j] >= lim[1]) or (mv < 0 and counts[j] <= lim[0])
+            ):
+                mv = 0
                 status |= LIMIT_BITS[j]
-        self.applied_mv = [self._pwm(j, v) for j, v in enumerate(out)]
+            # _pwm(j, mv), inlined: the PWM duty's voltage [mV] (integer math)
+            duty_mv = (
+                ((abs(mv) * levels + supply // 2) // supply) * supply + levels // 2
+            ) // levels
+            applied.append(duty_mv if mv >= 0 else -duty_mv)
+        self.applied_mv = applied
         if self.watchdog_tripped:
             status |= WATCHDOG_BIT
         if self.estop:
@@ -354,14 +363,15 @@ class FirmwareEmulator:
         self.status = status
         if self.streaming and tick % self.decimation == 0:
             # TELEMETRY(tick, status, mode, counts, voltage [mV], current [mA], setpoint),
-            # packed from its flattened values (the bytes encode() gives for the message)
+            # packed from its flattened values (the bytes encode() gives for the message);
+            # voltages and currents as _mv_clamp16 gives them
+            milli = [math.floor(x * 1000.0 + 0.5) for x in (*volts, *amps)]
             self._out += self._telemetry_frame(
                 tick,
                 status,
-                self.mode,
+                mode,
                 *counts,
-                *map(_mv_clamp16, volts),
-                *map(_mv_clamp16, amps),
+                *[-32768 if m < -32768 else (32767 if m > 32767 else m) for m in milli],
                 *self.setpoint,
             )
 

@@ -152,6 +152,6 @@ class FrameParser:
                 route[1](new(route[0], dec[2](vals)))
                 routed += 1
             else:
-                out.append(Frame(mid, seq, new(dec[1], dec[2](vals))))
+                out.append(new(Frame, (mid, seq, new(dec[1], dec[2](vals)))))
         st.frames += len(out) + routed
         return out
