@@ -49,6 +49,9 @@ WATCHDOG_BIT = 1 << STATUS["watchdog_tripped"]
 ESTOP_BIT = 1 << STATUS["estop"]
 SATURATED_BITS = [1 << v for k, v in sorted(STATUS.items()) if k.startswith("saturated_j")]
 LIMIT_BITS = [1 << v for k, v in sorted(STATUS.items()) if k.startswith("limit_j")]
+HOLD_BIT = 1 << SETPOINT_FLAGS["hold"]
+if [f.name for f in M["SETPOINT"].SPEC.fields] != ["tick", "flags", "position"]:
+    raise ImportError("the emulator's SETPOINT handler no longer matches the protocol")
 
 SETPOINT_DEPTH = 8  #: setpoints buffered ahead of their tick
 DEFAULT_WATCHDOG_MS = 250
@@ -237,21 +240,22 @@ class FirmwareEmulator:
         self._ack(frame)
 
     def _on_setpoint(self, frame) -> None:
-        msg = frame.msg
-        if len(msg.position) != self.n:
+        tick, flags, position = frame.msg
+        buffer = self.buffer
+        if len(position) != self.n:
             return self._nak(frame, "bad_joint")
         if self.estop:
             return self._nak(frame, "estop_active")
-        if self.mode != MODE["position"]:
+        if self.mode != POSITION:
             return self._nak(frame, "wrong_mode")
-        if tick_diff(msg.tick, self.tick) <= 0:
+        # tick_diff(tick, x) <= 0, inlined (serial u32 arithmetic)
+        if ((tick - self.tick + 0x80000000) & TICK_MASK) <= 0x80000000:
             return self._nak(frame, "setpoint_late")
-        if self.buffer and tick_diff(msg.tick, self.buffer[-1][0]) <= 0:
+        if buffer and ((tick - buffer[-1][0] + 0x80000000) & TICK_MASK) <= 0x80000000:
             return self._nak(frame, "bad_value")
-        if len(self.buffer) >= SETPOINT_DEPTH:
+        if len(buffer) >= SETPOINT_DEPTH:
             return self._nak(frame, "buffer_full")
-        hold = bool(msg.flags & (1 << SETPOINT_FLAGS["hold"]))
-        self.buffer.append((msg.tick, list(msg.position), hold))
+        buffer.append((tick, list(position), bool(flags & HOLD_BIT)))
 
     def _on_set_voltage(self, frame) -> None:
         msg = frame.msg
