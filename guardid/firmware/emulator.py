@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from math import floor
 
 from guardid.errors import ConfigError
 from guardid.firmware.pid import FixedPid, counts_per_joint_rev, mv_from_volts, pid_gains_q16
@@ -115,8 +116,14 @@ class FirmwareEmulator:
         self.pwm_levels = [(1 << j.drive.pwm_bits) - 1 for j in joints]
         self.limits = [self._count_limits(j, c) for j, c in zip(joints, self.cpr, strict=True)]
         self.pids = [FixedPid(s) for s in self.supply_mv]
-        # per joint, for the tick: (count limits or None, PWM levels, supply [mV])
-        self._per_joint = list(zip(self.limits, self.pwm_levels, self.supply_mv, strict=True))
+        # per joint, for the tick: (count limits or None, PWM levels, levels // 2,
+        # supply [mV], supply // 2), as _pwm uses them
+        self._per_joint = [
+            (lim, levels, levels // 2, supply, supply // 2)
+            for lim, levels, supply in zip(
+                self.limits, self.pwm_levels, self.supply_mv, strict=True
+            )
+        ]
         for pid, joint, cpr in zip(self.pids, joints, self.cpr, strict=True):
             if joint.pid is not None:
                 gains = [int(round(g * 1e6)) for g in (joint.pid.kp, joint.pid.ki, joint.pid.kd)]
@@ -347,7 +354,7 @@ class FirmwareEmulator:
         else:
             out = [0] * self.n
         applied = []
-        for j, (lim, levels, supply) in enumerate(self._per_joint):
+        for j, (lim, levels, half_levels, supply, half_supply) in enumerate(self._per_joint):
             mv = out[j]
             if lim is not None and (
                 (mv > 0 and counts[j] >= lim[1]) or (mv < 0 and counts[j] <= lim[0])
@@ -356,7 +363,7 @@ class FirmwareEmulator:
                 status |= LIMIT_BITS[j]
             # _pwm(j, mv), inlined: the PWM duty's voltage [mV] (integer math)
             duty_mv = (
-                ((abs(mv) * levels + supply // 2) // supply) * supply + levels // 2
+                ((abs(mv) * levels + half_supply) // supply) * supply + half_levels
             ) // levels
             applied.append(duty_mv if mv >= 0 else -duty_mv)
         self.applied_mv = applied
@@ -368,14 +375,18 @@ class FirmwareEmulator:
         if self.streaming and tick % self.decimation == 0:
             # TELEMETRY(tick, status, mode, counts, voltage [mV], current [mA], setpoint),
             # packed from its flattened values (the bytes encode() gives for the message);
-            # voltages and currents as _mv_clamp16 gives them
-            milli = [math.floor(x * 1000.0 + 0.5) for x in (*volts, *amps)]
+            # voltage [V] and current [A] to milli-units (rounded half up), clamped to int16
             self._out += self._telemetry_frame(
                 tick,
                 status,
                 mode,
                 *counts,
-                *[-32768 if m < -32768 else (32767 if m > 32767 else m) for m in milli],
+                *[
+                    m
+                    if -32768 <= (m := floor(x * 1000.0 + 0.5)) <= 32767
+                    else (-32768 if m < 0 else 32767)
+                    for x in (*volts, *amps)
+                ],
                 *self.setpoint,
             )
 
@@ -406,12 +417,6 @@ class FirmwareEmulator:
 
     def close(self) -> None:
         """Nothing to release."""
-
-
-def _mv_clamp16(value: float) -> int:
-    """``mv_from_volts(value)`` clamped to int16: [V] (or [A]) to milli-units, rounded."""
-    mv = math.floor(value * 1000.0 + 0.5)
-    return -32768 if mv < -32768 else (32767 if mv > 32767 else mv)
 
 
 def make_sim_device(robot: str, options) -> FirmwareEmulator:
