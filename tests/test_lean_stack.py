@@ -246,3 +246,23 @@ def test_sim_port_bytes_equal_a_straightforward_reference_path(query):
         assert msg.current == tuple(mv_from_volts(i) for i in sample.current)  # [mA]
         assert P.encode(msg, frame.seq) == seg + b"\x00"
     assert telemetry > 600
+
+
+def test_fused_free_acceleration_is_dyn_solved_for_qdd():
+    """free_accel's fused expressions give dyn's numbers exactly, and solve the model's
+    equations of motion (numpy on the generic mass matrix and bias)."""
+    plant = Plant("guard")
+    dyn, model, params = plant._dyn, plant.model, plant.params[0]
+    rng = np.random.default_rng(9)
+    for q1, q2, v1, v2, e1, e2, c1, c2, ia1, ia2 in rng.uniform(-3.0, 3.0, (100, 10)).tolist():
+        ia1, ia2 = abs(ia1) * 1e-3, abs(ia2) * 1e-3  # small inertia corrections [kg m^2]
+        got = dyn.free_accel(e1, e2, c1, c2, ia1, ia2)(q1, q2, v1, v2)
+        m11, m12, m22, b1, b2 = dyn(q1, q2, v1, v2)
+        r1, r2 = e1 - c1 * v1 - b1, e2 - c2 * v2 - b2
+        m11, m22 = m11 - ia1, m22 - ia2
+        det = m11 * m22 - m12 * m12
+        assert got == ((r1 * m22 - r2 * m12) / det, (r2 * m11 - r1 * m12) / det)
+        q, qd = np.array([[q1, q2]]), np.array([[v1, v2]])
+        mm = model.mass_matrix(q, params)[0] - np.diag([ia1, ia2])
+        rhs = np.array([e1 - c1 * v1, e2 - c2 * v2]) - model.bias(q, qd, params)[0]
+        assert np.allclose(got, np.linalg.solve(mm, rhs), rtol=1e-7, atol=1e-9)

@@ -170,9 +170,11 @@ class Plant:
         (c1 and a depend on the joint only: worked out once, see :meth:`_joint_terms`)."""
         if self._c1 is None:
             self._c1, self._a, self._decay = self._joint_terms()
+        (dr1, kt1, r1, off, _, _), (dr2, kt2, r2, _, _, _) = self._drive  # two joints
+        u1, u2 = u
         self._c0 = [
-            (kt * uj / r if not open_circuit else 0.0) if driven else uj
-            for (driven, kt, r, open_circuit, _, _), uj in zip(self._drive, u, strict=True)
+            (kt1 * u1 / r1 if not off else 0.0) if dr1 else u1,
+            (kt2 * u2 / r2 if not off else 0.0) if dr2 else u2,
         ]
         self._make_accel()
 
@@ -200,7 +202,10 @@ class Plant:
         h1, h2 = self._held
         dyn = self._dyn
 
-        if not h1 and not h2:
+        if not h1 and not h2 and hasattr(dyn, "free_accel"):
+            acc = dyn.free_accel(e1, e2, c11, c12, a1, a2)  # the closure below, fused with dyn
+
+        elif not h1 and not h2:
 
             def acc(q1, q2, v1, v2):
                 m11, m12, m22, b1, b2 = dyn(q1, q2, v1, v2)
