@@ -149,6 +149,7 @@ class Plant:
         self._single = any(jc.counts_per_rad and not jc.quadrature for jc in self.joints)
         self._u = [0.0, 0.0]
         self._per_rad = [jc.counts_per_rad for jc in self.joints]
+        self._stops = [(jc.fc, jc.lo, jc.hi) for jc in self.joints]  # friction, limits
         self._sensing = [(jc.driven, jc.r, jc.tau_e, jc.ke, _adc_terms(jc.voltage_sensor),
                           _adc_terms(jc.current_sensor)) for jc in self.joints]  # fmt: skip
         # per joint: (driven, kt, r, open circuit, supply [V], PWM levels 2**bits - 1)
@@ -301,18 +302,20 @@ class Plant:
     def _event(self, new):
         """(fraction, joint, stop) of the earliest zero-speed or limit crossing, or None."""
         best = None
-        held, joints, q, qd, sign = self._held, self.joints, self._q, self._qd, self._sign
-        for j in (0, 1):
+        held, q, qd, sign = self._held, self._q, self._qd, self._sign
+        for j, (fc, lo, hi) in enumerate(self._stops):
             if held[j]:
                 continue
-            jc = joints[j]
-            q0, v0, qn, vn = q[j], qd[j], new[j], new[2 + j]
-            if jc.fc > 0.0 and sign[j] * vn <= 0.0:
+            vn = new[2 + j]
+            if fc > 0.0 and sign[j] * vn <= 0.0:
+                v0 = qd[j]
                 th = v0 / (v0 - vn) if v0 != vn else 0.0
                 if best is None or th < best[0]:
                     best = (th, j, 0)
-            if qn > jc.hi or qn < jc.lo:
-                lim, stop = (jc.hi, 1) if qn > jc.hi else (jc.lo, -1)
+            qn = new[j]
+            if qn > hi or qn < lo:
+                q0 = q[j]
+                lim, stop = (hi, 1) if qn > hi else (lo, -1)
                 th = (lim - q0) / (qn - q0) if qn != q0 else 0.0
                 if best is None or th < best[0]:
                     best = (th, j, stop)
