@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +19,9 @@ import pytest
 
 from guardid import protocol as P
 from guardid.capture.stop import CaptureStopped, StopAwarePort, StopRequest
+from guardid.fakeport import register_device_factory
+from guardid.firmware import make_sim_device
+from guardid.firmware.pid import mv_from_volts
 from guardid.link import Session, open_port
 from guardid.plant import Plant
 from guardid.plant.payload import PayloadChange
@@ -140,3 +144,125 @@ def test_mass_alone_is_the_mass_part_of_the_fitted_evaluator():
     rng = np.random.default_rng(4)
     for q1, q2, v1, v2 in rng.uniform(-3.0, 3.0, (200, 4)).tolist():
         assert dyn.mass(q2) == dyn(q1, q2, v1, v2)[:3]
+
+
+class OneCallRecorder:
+    """A port proxy keeping what the host read and wrote, offering read_some (so the
+    session takes the one-call fast path) as well as read."""
+
+    def __init__(self, port) -> None:
+        self._port = port
+        self.received, self.sent = bytearray(), bytearray()
+
+    def read_some(self) -> bytes:
+        data = self._port.read_some()
+        self.received += data
+        return data
+
+    def read(self, size: int = 1) -> bytes:
+        data = self._port.read(size)
+        self.received += data
+        return data
+
+    def write(self, data) -> int:
+        self.sent += data
+        return self._port.write(data)
+
+    def __getattr__(self, name):
+        return getattr(self._port, name)
+
+
+class PlainRecorder(OneCallRecorder):
+    """The same without read_some: the session polls with in_waiting and read()."""
+
+    read_some = None
+
+
+def _recorded_run(url: str, recorder, ticks: int = 600):
+    """(host-read bytes, host-written bytes, fault stats) of a closed-loop run."""
+    port = recorder(open_port(url))
+    try:
+        session = Session(port)
+        session.handshake()
+        t = np.arange(ticks) * 0.015
+        rows = np.column_stack([900 * np.sin(1.3 * t), 400 * np.sin(2.1 * t) + 300])
+        assert sum(i >= 0 for i, _ in session.track(rows.astype(int))) == ticks
+        session.finish()
+        assert port.engine.clean == ("disconnect_s" not in url)  # the path under test
+        return bytes(port.received), bytes(port.sent), port.fault_stats
+    finally:
+        port.close()
+
+
+@contextmanager
+def reference_device():
+    """While active, sim:// ports get the emulator reading its plant through
+    ``Plant.step`` (the full SensorSample path) instead of ``step_sensors``; yields the
+    plant's samples, one per tick."""
+    samples = []
+
+    def factory(robot, options):
+        device = make_sim_device(robot, options)
+
+        def read_plant(volts):
+            sample = device.plant.step(volts)
+            samples.append(sample)
+            return [int(c) for c in sample.counts], sample.voltage, sample.current
+
+        device._read_plant = read_plant
+        return device
+
+    old = register_device_factory(factory)
+    try:
+        yield samples
+    finally:
+        register_device_factory(old)
+
+
+@pytest.mark.parametrize("query", ["seed=3", "seed=8&phase=1"])
+def test_sim_port_bytes_equal_a_straightforward_reference_path(query):
+    """Fast path: clean-link ticks without the fault layer, one-call reads, packed frames,
+    step_sensors. Reference: the general event loop (a disconnect scheduled far beyond
+    the run makes the link not clean), plain reads, Plant.step; and every telemetry
+    frame is the general encoder's frame of the plant's readings in milli-units."""
+    got, sent, stats = _recorded_run(f"sim://guard?{query}", OneCallRecorder)
+    with reference_device() as samples:
+        ref = _recorded_run(f"sim://guard?{query}&disconnect_s=1000", PlainRecorder)
+    assert got == ref[0] and sent == ref[1]
+    for st in (stats, ref[2]):  # the fault layer's byte accounting, with faults or not
+        assert st.down.bytes_in == st.down.bytes_out == len(got)
+        assert st.up.bytes_in == st.up.bytes_out == len(sent)
+        assert st.down.bytes_dropped == st.up.bytes_dropped == 0 and not st.bursts
+    by_tick = {s.tick: s for s in samples}
+    telemetry = 0
+    for seg in got.split(b"\x00")[:-1]:
+        frame = P.decode(seg)
+        if type(frame.msg) is not P.MESSAGES["TELEMETRY"]:
+            continue
+        telemetry += 1
+        sample, msg = by_tick[frame.msg.tick], frame.msg
+        assert msg.position == sample.counts  # [counts]
+        assert msg.voltage == tuple(mv_from_volts(v) for v in sample.voltage)  # [mV]
+        assert msg.current == tuple(mv_from_volts(i) for i in sample.current)  # [mA]
+        assert P.encode(msg, frame.seq) == seg + b"\x00"
+    assert telemetry > 600
+
+
+def test_fused_free_acceleration_is_dyn_solved_for_qdd():
+    """free_accel's fused expressions give dyn's numbers exactly, and solve the model's
+    equations of motion (numpy on the generic mass matrix and bias)."""
+    plant = Plant("guard")
+    dyn, model, params = plant._dyn, plant.model, plant.params[0]
+    rng = np.random.default_rng(9)
+    for q1, q2, v1, v2, e1, e2, c1, c2, ia1, ia2 in rng.uniform(-3.0, 3.0, (100, 10)).tolist():
+        ia1, ia2 = abs(ia1) * 1e-3, abs(ia2) * 1e-3  # small inertia corrections [kg m^2]
+        got = dyn.free_accel(e1, e2, c1, c2, ia1, ia2)(q1, q2, v1, v2)
+        m11, m12, m22, b1, b2 = dyn(q1, q2, v1, v2)
+        r1, r2 = e1 - c1 * v1 - b1, e2 - c2 * v2 - b2
+        m11, m22 = m11 - ia1, m22 - ia2
+        det = m11 * m22 - m12 * m12
+        assert got == ((r1 * m22 - r2 * m12) / det, (r2 * m11 - r1 * m12) / det)
+        q, qd = np.array([[q1, q2]]), np.array([[v1, v2]])
+        mm = model.mass_matrix(q, params)[0] - np.diag([ia1, ia2])
+        rhs = np.array([e1 - c1 * v1, e2 - c2 * v2]) - model.bias(q, qd, params)[0]
+        assert np.allclose(got, np.linalg.solve(mm, rhs), rtol=1e-7, atol=1e-9)

@@ -132,6 +132,19 @@ def test_stiction_holds_exactly_below_coulomb_and_moves_above():
     assert s.qd[0] == 0.0 and above.state.held[0]
 
 
+def test_tilt_falls_onto_its_lower_stop_and_is_driven_onto_the_upper_one():
+    """Stops from the robot description: unpowered, gravity (~7.3 N m) takes the tilt down
+    onto -10 deg and it rests there; 12 V takes it up onto +35 deg."""
+    lo, hi = DESC.joints[1].limits.position
+    plant = Plant(DESC, model=MODEL, noise=False, q0=[0.0, 0.1])
+    for _ in range(200):  # 3 s
+        s = plant.step([0.0, 0.0])
+    assert s.q[1] == lo and s.qd[1] == 0.0 and plant.state.held[1]
+    for _ in range(200):
+        s = plant.step([0.0, 12.0])
+    assert s.q[1] == hi and s.qd[1] == 0.0 and plant.state.held[1]
+
+
 def test_locked_rotor_mean_current_is_analytic():
     plant = Plant(DESC, model=MODEL, noise=False, q0=[0.0, 0.1])
     s = plant.step([0.6, 4.2])

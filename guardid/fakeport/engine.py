@@ -40,6 +40,12 @@ class LinkEngine:
         )
         self.disconnected = False
         self.rx = bytearray()  # delivered to the host, not yet read
+        # no fault of any kind configured: bytes pass straight through, counted as the
+        # corrupters count them (see tick_until_output, host_write, _emit)
+        self.clean = (
+            self._down.passes_all and self._up.passes_all and self._latency is None
+            and self._disconnect_ns is None
+        )  # fmt: skip
 
     @property
     def now_s(self) -> float:
@@ -107,14 +113,45 @@ class LinkEngine:
         while not self.rx and (e := self.next_event_ns()) is not None and e - start <= max_ns:
             self.step()
 
+    def tick_until_output(self, size: int, deadline_ns: int) -> bool:
+        """On a :attr:`clean` link: run device ticks until ``size`` bytes wait for the host
+        (True) or the next tick would come after ``deadline_ns`` (False); what
+        :meth:`step` does there, without its general event bookkeeping."""
+        rx, device, tick_ns, down = self.rx, self.device, self.tick_ns, self.stats.down
+        while len(rx) < size:
+            t = (self.ticks + 1) * tick_ns
+            if t > deadline_ns:
+                return False
+            if t > self.now_ns:
+                self.now_ns = t
+            self.ticks += 1
+            device.advance()
+            out = device.take_output()
+            if out:
+                n = len(out)
+                down.bytes_in += n
+                down.bytes_out += n
+                rx += out
+        return True
+
     def host_write(self, data: bytes) -> None:
         """Bytes from the host reach the device now; its responses enter the link."""
         if self.disconnected:
             raise Disconnected(f"{self.name}: port disconnected")
-        data = self._up.apply(data if type(data) is bytes else bytes(data))
+        if type(data) is not bytes:
+            data = bytes(data)
+        if self.clean:
+            up = self.stats.up
+            up.bytes_in += len(data)
+            up.bytes_out += len(data)
+        else:
+            data = self._up.apply(data)
         if data:
-            self.device.receive(data)
-            self._emit(self.device.take_output())
+            device = self.device
+            device.receive(data)
+            out = device.take_output()
+            if out:
+                self._emit(out)
 
     def take(self, size: int | None = None) -> bytes:
         """Remove and return up to ``size`` delivered bytes (all when None)."""
@@ -129,6 +166,12 @@ class LinkEngine:
 
     def _emit(self, raw: bytes) -> None:
         if not raw:
+            return
+        if self.clean:
+            down = self.stats.down
+            down.bytes_in += len(raw)
+            down.bytes_out += len(raw)
+            self.rx += raw
             return
         data = self._down.apply(raw)
         if self._latency is not None:

@@ -70,11 +70,16 @@ class Corrupter:
         self._flip_rng = np.random.default_rng(flip_seq)
         self.stats = stats
 
+    @property
+    def passes_all(self) -> bool:
+        """True when no byte is ever dropped or flipped (apply() only counts them)."""
+        return self.drop <= 0.0 and self.flip <= 0.0
+
     def apply(self, data: bytes) -> bytes:
         """Return ``data`` after the faults, recording them in :attr:`stats`."""
         n, base = len(data), self.stats.bytes_in
         self.stats.bytes_in += n
-        if n == 0 or (self.drop <= 0.0 and self.flip <= 0.0):
+        if n == 0 or self.passes_all:
             self.stats.bytes_out += n
             return data if type(data) is bytes else bytes(data)
         arr = np.frombuffer(data, dtype=np.uint8).copy()

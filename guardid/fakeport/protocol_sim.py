@@ -27,7 +27,8 @@ class Serial(SerialBase):
     def __init__(self, *args, **kwargs) -> None:
         self.engine: LinkEngine | None = None
         self.options: SimOptions | None = None
-        self._cond = threading.Condition()
+        self._lock = threading.RLock()
+        self._cond = threading.Condition(self._lock)  # lock-step paths take _lock alone
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._t0 = 0.0
@@ -117,7 +118,7 @@ class Serial(SerialBase):
         """What ``read(1)`` waits for, then every byte delivered so far: one call where a
         host would ask ``in_waiting``, ``read(1)`` and ``read(in_waiting)``."""
         self._check_open()
-        with self._cond:
+        with self._lock:  # the condition's lock (waits happen in _fill_realtime only)
             engine = self.engine
             if not engine.rx:
                 if self.options.lockstep:
@@ -132,8 +133,9 @@ class Serial(SerialBase):
     def write(self, data) -> int:
         """Hand ``data`` to the device now (real-time: at the current wall-clock time)."""
         self._check_open()
-        data = to_bytes(data)
-        with self._cond:
+        if type(data) is not bytes:
+            data = to_bytes(data)
+        with self._lock:  # the condition's lock
             if self.options.lockstep:  # nothing ever waits on the condition in lock-step
                 self.engine.host_write(data)
             else:
@@ -191,6 +193,10 @@ class Serial(SerialBase):
             return
         limit = MAX_BLOCK_S if self._timeout is None else self._timeout
         deadline = engine.now_ns + round(limit * 1e9)
+        if engine.clean and self._timeout is not None:  # only device ticks can happen
+            if not engine.tick_until_output(size, deadline):
+                engine.advance_to(deadline)
+            return
         while len(engine.rx) < size and not engine.disconnected:
             e = engine.next_event_ns()
             if self._timeout is None and self._idle_forever():

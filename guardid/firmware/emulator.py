@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from math import floor
 
 from guardid.errors import ConfigError
 from guardid.firmware.pid import FixedPid, counts_per_joint_rev, mv_from_volts, pid_gains_q16
@@ -49,6 +50,9 @@ WATCHDOG_BIT = 1 << STATUS["watchdog_tripped"]
 ESTOP_BIT = 1 << STATUS["estop"]
 SATURATED_BITS = [1 << v for k, v in sorted(STATUS.items()) if k.startswith("saturated_j")]
 LIMIT_BITS = [1 << v for k, v in sorted(STATUS.items()) if k.startswith("limit_j")]
+HOLD_BIT = 1 << SETPOINT_FLAGS["hold"]
+if [f.name for f in M["SETPOINT"].SPEC.fields] != ["tick", "flags", "position"]:
+    raise ImportError("the emulator's SETPOINT handler no longer matches the protocol")
 
 SETPOINT_DEPTH = 8  #: setpoints buffered ahead of their tick
 DEFAULT_WATCHDOG_MS = 250
@@ -112,6 +116,14 @@ class FirmwareEmulator:
         self.pwm_levels = [(1 << j.drive.pwm_bits) - 1 for j in joints]
         self.limits = [self._count_limits(j, c) for j, c in zip(joints, self.cpr, strict=True)]
         self.pids = [FixedPid(s) for s in self.supply_mv]
+        # per joint, for the tick: (count limits or None, PWM levels, levels // 2,
+        # supply [mV], supply // 2), as _pwm uses them
+        self._per_joint = [
+            (lim, levels, levels // 2, supply, supply // 2)
+            for lim, levels, supply in zip(
+                self.limits, self.pwm_levels, self.supply_mv, strict=True
+            )
+        ]
         for pid, joint, cpr in zip(self.pids, joints, self.cpr, strict=True):
             if joint.pid is not None:
                 gains = [int(round(g * 1e6)) for g in (joint.pid.kp, joint.pid.ki, joint.pid.kd)]
@@ -235,21 +247,22 @@ class FirmwareEmulator:
         self._ack(frame)
 
     def _on_setpoint(self, frame) -> None:
-        msg = frame.msg
-        if len(msg.position) != self.n:
+        tick, flags, position = frame.msg
+        buffer = self.buffer
+        if len(position) != self.n:
             return self._nak(frame, "bad_joint")
         if self.estop:
             return self._nak(frame, "estop_active")
-        if self.mode != MODE["position"]:
+        if self.mode != POSITION:
             return self._nak(frame, "wrong_mode")
-        if tick_diff(msg.tick, self.tick) <= 0:
+        # tick_diff(tick, x) <= 0, inlined (serial u32 arithmetic)
+        if ((tick - self.tick + 0x80000000) & TICK_MASK) <= 0x80000000:
             return self._nak(frame, "setpoint_late")
-        if self.buffer and tick_diff(msg.tick, self.buffer[-1][0]) <= 0:
+        if buffer and ((tick - buffer[-1][0] + 0x80000000) & TICK_MASK) <= 0x80000000:
             return self._nak(frame, "bad_value")
-        if len(self.buffer) >= SETPOINT_DEPTH:
+        if len(buffer) >= SETPOINT_DEPTH:
             return self._nak(frame, "buffer_full")
-        hold = bool(msg.flags & (1 << SETPOINT_FLAGS["hold"]))
-        self.buffer.append((msg.tick, list(msg.position), hold))
+        buffer.append((tick, list(position), bool(flags & HOLD_BIT)))
 
     def _on_set_voltage(self, frame) -> None:
         msg = frame.msg
@@ -312,14 +325,14 @@ class FirmwareEmulator:
         self.tick = tick = (self.tick + 1) & TICK_MASK
         self.counts = counts
         status = 0
-        moving = self.mode != IDLE
-        silent_ms = ((self.tick - self.last_host_tick) & TICK_MASK) * self.tick_us // 1000
-        if moving and silent_ms >= self.watchdog_ms:
+        mode = self.mode
+        silent_ms = ((tick - self.last_host_tick) & TICK_MASK) * self.tick_us // 1000
+        if mode != IDLE and silent_ms >= self.watchdog_ms:
             self.watchdog_tripped = True
-            self._enter_mode(MODE["idle"])
-            self._send(M["FAULT"](self.tick, FAULT["watchdog"], 0xFF, silent_ms))
-            moving = False
-        if self.mode == POSITION:
+            self._enter_mode(IDLE)
+            self._send(M["FAULT"](tick, FAULT["watchdog"], 0xFF, silent_ms))
+            mode = IDLE
+        if mode == POSITION:
             due = False
             buffer = self.buffer
             # tick_diff(buffer[0][0], tick) <= 0, inlined (serial u32 arithmetic)
@@ -334,19 +347,26 @@ class FirmwareEmulator:
                 out.append(pid.step(setpoint[j], counts[j]))
                 if pid.saturated:
                     status |= SATURATED_BITS[j]
-        elif self.mode == VOLTAGE:
+        elif mode == VOLTAGE:
             out = [
                 max(-s, min(s, v)) for v, s in zip(self.voltage_cmd_mv, self.supply_mv, strict=True)
             ]
         else:
             out = [0] * self.n
-        for j, lim in enumerate(self.limits):
-            if lim is None:
-                continue
-            if (counts[j] >= lim[1] and out[j] > 0) or (counts[j] <= lim[0] and out[j] < 0):
-                out[j] = 0
+        applied = []
+        for j, (lim, levels, half_levels, supply, half_supply) in enumerate(self._per_joint):
+            mv = out[j]
+            if lim is not None and (
+                (mv > 0 and counts[j] >= lim[1]) or (mv < 0 and counts[j] <= lim[0])
+            ):
+                mv = 0
                 status |= LIMIT_BITS[j]
-        self.applied_mv = [self._pwm(j, v) for j, v in enumerate(out)]
+            # _pwm(j, mv), inlined: the PWM duty's voltage [mV] (integer math)
+            duty_mv = (
+                ((abs(mv) * levels + half_supply) // supply) * supply + half_levels
+            ) // levels
+            applied.append(duty_mv if mv >= 0 else -duty_mv)
+        self.applied_mv = applied
         if self.watchdog_tripped:
             status |= WATCHDOG_BIT
         if self.estop:
@@ -354,14 +374,19 @@ class FirmwareEmulator:
         self.status = status
         if self.streaming and tick % self.decimation == 0:
             # TELEMETRY(tick, status, mode, counts, voltage [mV], current [mA], setpoint),
-            # packed from its flattened values (the bytes encode() gives for the message)
+            # packed from its flattened values (the bytes encode() gives for the message);
+            # voltage [V] and current [A] to milli-units (rounded half up), clamped to int16
             self._out += self._telemetry_frame(
                 tick,
                 status,
-                self.mode,
+                mode,
                 *counts,
-                *map(_mv_clamp16, volts),
-                *map(_mv_clamp16, amps),
+                *[
+                    m
+                    if -32768 <= (m := floor(x * 1000.0 + 0.5)) <= 32767
+                    else (-32768 if m < 0 else 32767)
+                    for x in (*volts, *amps)
+                ],
                 *self.setpoint,
             )
 
@@ -392,12 +417,6 @@ class FirmwareEmulator:
 
     def close(self) -> None:
         """Nothing to release."""
-
-
-def _mv_clamp16(value: float) -> int:
-    """``mv_from_volts(value)`` clamped to int16: [V] (or [A]) to milli-units, rounded."""
-    mv = math.floor(value * 1000.0 + 0.5)
-    return -32768 if mv < -32768 else (32767 if mv > 32767 else mv)
 
 
 def make_sim_device(robot: str, options) -> FirmwareEmulator:

@@ -294,13 +294,17 @@ class Session:
         while sent < min(first + depth - 1, last):
             sent += 1
             self.send_setpoint(sent, rows[sent - first])
+        # the loop's send_setpoint(tick, row), with the row's ints and the packer at hand
+        pack = self._setpoint_packers[len(rows[0])]  # made by the first send_setpoint
+        write, next_telemetry = self._write, self.next_telemetry
         while True:
-            t = self.next_telemetry()
-            while sent < min(t.tick + depth, last):
+            t = next_telemetry()
+            tick = t.tick
+            while sent < last and sent < tick + depth:
                 sent += 1
-                self.send_setpoint(sent, rows[sent - first])
-            yield t.tick - first, t
-            if t.tick >= last:
+                write(pack(sent & 0xFFFFFFFF, 0, *rows[sent - first]))
+            yield tick - first, t
+            if tick >= last:
                 return
 
     def finish(self) -> None:

@@ -67,17 +67,26 @@ def _make(cm, cg):
     cos, sin = math.cos, math.sin
 
     def dyn(q1, q2, qd1, qd2):
-        c, s = cos(q2), sin(q2)
-        cc, sc = c * c, s * c
-        d_c, d_s, d_cc, d_sc = -s, c, -2.0 * sc, cc - s * s  # derivatives wrt q2
+        c = cos(q2)
+        s = sin(q2)
+        cc = c * c
+        sc = s * c
+        # derivatives wrt q2: d(c) = -s, d(s) = c, d(cc) = -2 sc, d(sc) = cc - s s
+        d_c = -s
+        d_cc = -2.0 * sc
+        d_sc = cc - s * s
         m11 = a0 + a1 * c + a2 * s + a3 * cc + a4 * sc
         m12 = b0 + b1 * c + b2 * s + b3 * cc + b4 * sc
         m22 = c0 + c1 * c + c2 * s + c3 * cc + c4 * sc
-        d11 = a1 * d_c + a2 * d_s + a3 * d_cc + a4 * d_sc
-        d12 = b1 * d_c + b2 * d_s + b3 * d_cc + b4 * d_sc
-        d22 = c1 * d_c + c2 * d_s + c3 * d_cc + c4 * d_sc
-        k1, s1 = cos(q1), sin(q1)
-        kc, ks, sc1, ss = k1 * c, k1 * s, s1 * c, s1 * s
+        d11 = a1 * d_c + a2 * c + a3 * d_cc + a4 * d_sc
+        d12 = b1 * d_c + b2 * c + b3 * d_cc + b4 * d_sc
+        d22 = c1 * d_c + c2 * c + c3 * d_cc + c4 * d_sc
+        k1 = cos(q1)
+        s1 = sin(q1)
+        kc = k1 * c
+        ks = k1 * s
+        sc1 = s1 * c
+        ss = s1 * s
         gr1 = g10 + g11 * k1 + g12 * s1 + g13 * c + g14 * s + g15 * kc + g16 * ks + g17 * sc1
         gr1 += g18 * ss
         gr2 = g20 + g21 * k1 + g22 * s1 + g23 * c + g24 * s + g25 * kc + g26 * ks + g27 * sc1
@@ -85,6 +94,45 @@ def _make(cm, cg):
         b1_ = (d11 * qd1 + d12 * qd2) * qd2 + gr1
         b2_ = 0.5 * (d22 * qd2 * qd2 - d11 * qd1 * qd1) + gr2
         return m11, m12, m22, b1_, b2_
+
+    def free_accel(e1, e2, c11, c12, ia1, ia2):
+        """``acc(q1, q2, qd1, qd2) -> (qdd1, qdd2)`` [rad/s^2] with both joints moving:
+        (M - diag(ia)) qdd = (e1 - c11 qd1, e2 - c12 qd2) - b, solved by Cramer's rule;
+        the expressions of ``dyn`` inlined (same operations, same results: one call per
+        RK4 stage instead of two). e [N m], c [N m s/rad], ia [kg m^2]."""
+
+        def acc(q1, q2, qd1, qd2):
+            c = cos(q2)
+            s = sin(q2)
+            cc = c * c
+            sc = s * c
+            d_c = -s
+            d_cc = -2.0 * sc
+            d_sc = cc - s * s
+            m11 = a0 + a1 * c + a2 * s + a3 * cc + a4 * sc
+            m12 = b0 + b1 * c + b2 * s + b3 * cc + b4 * sc
+            m22 = c0 + c1 * c + c2 * s + c3 * cc + c4 * sc
+            d11 = a1 * d_c + a2 * c + a3 * d_cc + a4 * d_sc
+            d12 = b1 * d_c + b2 * c + b3 * d_cc + b4 * d_sc
+            d22 = c1 * d_c + c2 * c + c3 * d_cc + c4 * d_sc
+            k1 = cos(q1)
+            s1 = sin(q1)
+            kc = k1 * c
+            ks = k1 * s
+            sc1 = s1 * c
+            ss = s1 * s
+            gr1 = g10 + g11 * k1 + g12 * s1 + g13 * c + g14 * s + g15 * kc + g16 * ks + g17 * sc1
+            gr1 += g18 * ss
+            gr2 = g20 + g21 * k1 + g22 * s1 + g23 * c + g24 * s + g25 * kc + g26 * ks + g27 * sc1
+            gr2 += g28 * ss
+            r1 = e1 - c11 * qd1 - ((d11 * qd1 + d12 * qd2) * qd2 + gr1)
+            r2 = e2 - c12 * qd2 - (0.5 * (d22 * qd2 * qd2 - d11 * qd1 * qd1) + gr2)
+            m11 -= ia1
+            m22 -= ia2
+            det = m11 * m22 - m12 * m12
+            return (r1 * m22 - r2 * m12) / det, (r2 * m11 - r1 * m12) / det
+
+        return acc
 
     def mass(q2):
         """(m11, m12, m22) [kg m^2]: the first three of ``dyn`` (same expressions)."""
@@ -96,6 +144,7 @@ def _make(cm, cg):
         return m11, m12, m22
 
     dyn.mass = mass
+    dyn.free_accel = free_accel
     return dyn
 
 

@@ -36,7 +36,7 @@ import numpy as np
 from guardid.plant.fast2r import fit_two_revolute, generic_two
 from guardid.plant.joints import PlantError, joint_constants
 from guardid.plant.payload import payload_params
-from guardid.plant.sensors import adc_quantise, pwm_quantise
+from guardid.plant.sensors import adc_step
 
 DEFAULT_SUBSTEPS = 1
 """RK4 sub-steps per tick. One step per 15 ms tick keeps q within ~1e-7 rad of a tight
@@ -47,6 +47,15 @@ instead of every tick (at most one tick late with 1). 1 keeps the whole simulate
 above 200x real time through the protocol stack (bench/bench_hil.py)."""
 
 _MAX_EVENTS = 8
+
+
+def _adc_terms(sensor) -> tuple | None:
+    """(LSB, 2**(bits-1), noise sigma) of a (range, bits, noise) sensor, as
+    :func:`adc_quantise` works them out, or None."""
+    if sensor is None:
+        return None
+    full_range, bits, sigma = sensor
+    return adc_step(full_range, bits), 1 << (bits - 1), sigma
 
 
 class SensorSample(NamedTuple):
@@ -139,6 +148,13 @@ class Plant:
         self._last_sign = [1.0, 1.0]
         self._single = any(jc.counts_per_rad and not jc.quadrature for jc in self.joints)
         self._u = [0.0, 0.0]
+        self._per_rad = [jc.counts_per_rad for jc in self.joints]
+        self._stops = [(jc.fc, jc.lo, jc.hi) for jc in self.joints]  # friction, limits
+        self._sensing = [(jc.driven, jc.r, jc.tau_e, jc.ke, _adc_terms(jc.voltage_sensor),
+                          _adc_terms(jc.current_sensor)) for jc in self.joints]  # fmt: skip
+        # per joint: (driven, kt, r, open circuit, supply [V], PWM levels 2**bits - 1)
+        self._drive = [(jc.driven, jc.kt, jc.r, self.open_circuit, jc.supply,
+                        (1 << jc.pwm_bits) - 1) for jc in self.joints]  # fmt: skip
         self._c1 = None
         self._configure([0.0, 0.0])
 
@@ -155,15 +171,12 @@ class Plant:
         (c1 and a depend on the joint only: worked out once, see :meth:`_joint_terms`)."""
         if self._c1 is None:
             self._c1, self._a, self._decay = self._joint_terms()
-        c0 = []
-        for jc, uj in zip(self.joints, u, strict=True):
-            if not jc.driven:
-                c0.append(uj)
-            elif self.open_circuit:
-                c0.append(0.0)
-            else:
-                c0.append(jc.kt * uj / jc.r)
-        self._c0 = c0
+        (dr1, kt1, r1, off, _, _), (dr2, kt2, r2, _, _, _) = self._drive  # two joints
+        u1, u2 = u
+        self._c0 = [
+            (kt1 * u1 / r1 if not off else 0.0) if dr1 else u1,
+            (kt2 * u2 / r2 if not off else 0.0) if dr2 else u2,
+        ]
         self._make_accel()
 
     def _joint_terms(self):
@@ -190,7 +203,10 @@ class Plant:
         h1, h2 = self._held
         dyn = self._dyn
 
-        if not h1 and not h2:
+        if not h1 and not h2 and hasattr(dyn, "free_accel"):
+            acc = dyn.free_accel(e1, e2, c11, c12, a1, a2)  # the closure below, fused with dyn
+
+        elif not h1 and not h2:
 
             def acc(q1, q2, v1, v2):
                 m11, m12, m22, b1, b2 = dyn(q1, q2, v1, v2)
@@ -286,18 +302,20 @@ class Plant:
     def _event(self, new):
         """(fraction, joint, stop) of the earliest zero-speed or limit crossing, or None."""
         best = None
-        held, joints, q, qd, sign = self._held, self.joints, self._q, self._qd, self._sign
-        for j in (0, 1):
+        held, q, qd, sign = self._held, self._q, self._qd, self._sign
+        for j, (fc, lo, hi) in enumerate(self._stops):
             if held[j]:
                 continue
-            jc = joints[j]
-            q0, v0, qn, vn = q[j], qd[j], new[j], new[2 + j]
-            if jc.fc > 0.0 and sign[j] * vn <= 0.0:
+            vn = new[2 + j]
+            if fc > 0.0 and sign[j] * vn <= 0.0:
+                v0 = qd[j]
                 th = v0 / (v0 - vn) if v0 != vn else 0.0
                 if best is None or th < best[0]:
                     best = (th, j, 0)
-            if qn > jc.hi or qn < jc.lo:
-                lim, stop = (jc.hi, 1) if qn > jc.hi else (jc.lo, -1)
+            qn = new[j]
+            if qn > hi or qn < lo:
+                q0 = q[j]
+                lim, stop = (hi, 1) if qn > hi else (lo, -1)
                 th = (lim - q0) / (qn - q0) if qn != q0 else 0.0
                 if best is None or th < best[0]:
                     best = (th, j, stop)
@@ -387,15 +405,20 @@ class Plant:
 
     def _integrate(self, u):
         """Advance one period holding ``u``; return what the measurement needs."""
-        T, joints = self.dt, self.joints
+        T = self.dt
         t0 = self._tick * T
-        applied = [
-            pwm_quantise(float(x), jc.supply, jc.pwm_bits) if jc.driven else float(x)
-            for x, jc in zip(u, joints, strict=True)
-        ]
-        for j, x in enumerate(applied):
+        applied = []
+        last_sign = self._last_sign
+        for j, ((driven, _, _, _, supply, levels), x) in enumerate(
+            zip(self._drive, u, strict=True)
+        ):
+            x = float(x)
+            if driven:  # pwm_quantise(x, supply, bits), inlined (same operations)
+                duty = math.floor(min(abs(x), supply) / supply * levels + 0.5) * supply / levels
+                x = -duty if x < 0.0 else duty
+            applied.append(x)
             if x != 0.0:
-                self._last_sign[j] = 1.0 if x > 0 else -1.0
+                last_sign[j] = 1.0 if x > 0 else -1.0
         self._configure(applied)
         q_start = list(self._q)
         decay, layer = self._boundary_layer(applied)
@@ -469,42 +492,45 @@ class Plant:
     def _measure(self, applied, q_start, qd_start, decay, layer):
         """(counts, voltage, current, voltage_true, current_true) at the end of the period
         (lists; see :class:`SensorSample`); updates the current and the cached M."""
-        T, rng, noise = self.dt, self._rng, self.noise
+        T, noise = self.dt, self.noise
+        gauss = self._rng.gauss
         q1, q2 = self._q
         mass = getattr(self._dyn, "mass", None)  # M alone on the fitted 2R evaluator
         self._m = mass(q2) if mass is not None else self._dyn(q1, q2, *self._qd)[:3]
         v_true, i_true, v_meas, i_meas = [], [], [], []
-        q, qd, cur, held = self._q, self._qd, self._i, self._held
-        for j, jc in enumerate(self.joints):
-            dq = q[j] - q_start[j]
-            if not jc.driven:
+        q, qd, cur, held, acc = self._q, self._qd, self._i, self._held, self._acc
+        for j, (driven, r, te, k, vsense, isense) in enumerate(self._sensing):
+            if not driven:
                 vm, im = 0.0, 0.0
                 cur[j] = 0.0
             elif self.open_circuit:
-                vm, im = jc.ke * dq / T, 0.0
+                vm, im = k * (q[j] - q_start[j]) / T, 0.0
                 cur[j] = 0.0
             else:
-                v, r, te, k = applied[j], jc.r, jc.tau_e, jc.ke
-                acc = self._acc[j] if not held[j] else 0.0
-                im = (v * T - k * dq) / r + te * k * (qd[j] - qd_start[j]) / r
-                im = (im + layer[j] * te * (1.0 - decay[j])) / T
-                cur[j] = (v - k * qd[j]) / r + te * k * acc / r + layer[j] * decay[j]
+                v, lj, dj = applied[j], layer[j], decay[j]
+                im = (v * T - k * (q[j] - q_start[j])) / r + te * k * (qd[j] - qd_start[j]) / r
+                im = (im + lj * te * (1.0 - dj)) / T
+                a = acc[j] if not held[j] else 0.0
+                cur[j] = (v - k * qd[j]) / r + te * k * a / r + lj * dj
                 vm = v
             v_true.append(vm)
             i_true.append(im)
-            s = jc.voltage_sensor
-            if s is not None:
-                vm = adc_quantise(vm + (rng.gauss(0.0, s[2]) if noise else 0.0), s[0], s[1])
-            s = jc.current_sensor
-            if s is not None:
-                im = adc_quantise(im + (rng.gauss(0.0, s[2]) if noise else 0.0), s[0], s[1])
+            # adc_quantise(x + noise, range, bits), inlined: (LSB, 2**(bits-1), sigma)
+            if vsense is not None:
+                lsb, half, sigma = vsense
+                code = math.floor((vm + gauss(0.0, sigma) if noise else vm + 0.0) / lsb + 0.5)
+                vm = (half - 1 if code >= half else (-half if code < -half else code)) * lsb
+            if isense is not None:
+                lsb, half, sigma = isense
+                code = math.floor((im + gauss(0.0, sigma) if noise else im + 0.0) / lsb + 0.5)
+                im = (half - 1 if code >= half else (-half if code < -half else code)) * lsb
             v_meas.append(vm)
             i_meas.append(im)
         if self._single:
             self._count_edges(q1, q2)
             counts = list(self._counts)
         else:
-            counts = self._quad_counts(self._q)
+            counts = [math.floor(q1 * self._per_rad[0]), math.floor(q2 * self._per_rad[1])]
         return counts, v_meas, i_meas, v_true, i_true
 
 

@@ -19,6 +19,8 @@ from cobs import cobs
 
 from .codec import BY_ID, CRC_RESIDUE, DECODERS, MAX_ENCODED, MIN_RAW, PROTOCOL_VERSION, Frame
 
+_cobs_decode, _CobsError, _crc32 = cobs.decode, cobs.DecodeError, zlib.crc32
+
 
 @dataclass
 class ParserStats:
@@ -69,14 +71,18 @@ class FrameParser:
         self._buf = b""
         self._discard = False
         self._expect: list[int | None] = [None, None]  # host->mcu, mcu->host
-        self._routes: dict[int, tuple[type, Callable[[tuple], object]]] = {}
+        # (msg_id, raw length) -> (unpack, class, field getter, sink or None): DECODERS
+        # with the routes of route() filled in, one lookup per frame
+        self._table = {key: (st.unpack, cls, get, None) for key, (st, cls, get) in DECODERS.items()}
 
     def route(self, msg_id: int, cls: type, sink: Callable[[tuple], object]) -> None:
         """Hand valid frames of ``msg_id`` to ``sink(msg)`` as they are parsed, ``msg``
         built as ``cls`` (a tuple class with the message's fields in order, e.g. a
         NamedTuple), instead of returning them from :meth:`feed` (streaming hot path: no
         :class:`Frame` per frame). They are counted and sequence-checked as the others."""
-        self._routes[msg_id] = (cls, sink)
+        for key, (st, _, get) in DECODERS.items():
+            if key[0] == msg_id:
+                self._table[key] = (st.unpack, cls, get, sink)
 
     def reset_sequence(self) -> None:
         """Forget the expected sequence numbers (e.g. after the peer was reset)."""
@@ -101,11 +107,8 @@ class FrameParser:
             tail = b""
         self._buf = tail
         out: list[Frame] = []
-        decode = cobs.decode
-        crc32 = zlib.crc32
-        decoders = DECODERS
+        table = self._table
         expect = self._expect
-        routes = self._routes
         new = tuple.__new__
         routed = 0
         for seg in parts:
@@ -115,28 +118,30 @@ class FrameParser:
                 st.overflows += 1
                 continue
             try:
-                raw = decode(seg)
-            except cobs.DecodeError:
+                raw = _cobs_decode(seg)
+            except _CobsError:
                 st.cobs_errors += 1
                 continue
-            if len(raw) < MIN_RAW:
+            n = len(raw)
+            if n < MIN_RAW:
                 st.short_frames += 1
                 continue
-            if crc32(raw) != CRC_RESIDUE:
+            if _crc32(raw) != CRC_RESIDUE:
                 st.crc_errors += 1
                 continue
             if raw[0] != PROTOCOL_VERSION:
                 st.bad_version += 1
                 continue
             mid = raw[1]
-            dec = decoders.get((mid, len(raw)))
-            if dec is None:
+            entry = table.get((mid, n))
+            if entry is None:
                 if mid in BY_ID:
                     st.bad_length += 1
                 else:
                     st.unknown_id += 1
                 continue
-            vals = dec[0].unpack(raw)
+            unpack, cls, get, sink = entry
+            vals = unpack(raw)
             seq = vals[2]
             d = mid >> 7
             exp = expect[d]
@@ -147,11 +152,10 @@ class FrameParser:
                 else:
                     st.seq_backwards += 1
             expect[d] = (seq + 1) & 0xFFFF
-            route = routes.get(mid)
-            if route is not None:
-                route[1](new(route[0], dec[2](vals)))
+            if sink is not None:
+                sink(new(cls, get(vals)))
                 routed += 1
             else:
-                out.append(Frame(mid, seq, new(dec[1], dec[2](vals))))
+                out.append(new(Frame, (mid, seq, new(cls, get(vals)))))
         st.frames += len(out) + routed
         return out
