@@ -23,7 +23,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 MAX_ITER = 10  #: closed-loop simulations at most
-TOL_STD = 0.01  #: converged when every parameter moves less than this many of its std
+TOL_STD = {"iv": 0.01, "didim": 0.3}
+"""Converged when every parameter moves less than this many of its std [-]. IV's
+instruments enter linearly and its steps shrink to ~0.01 std in 2-3 iterations. DIDIM's
+output is the simulated motion itself, which is piecewise in theta (the PID acts on whole
+encoder counts, joints stick and slip): on 60 s guard captures its steps after the first
+stay at 0.1-0.27 std (measured), a floor of the simulation, not a drift."""
 
 
 @dataclass
@@ -92,8 +97,7 @@ def closed_loop_fit(method: str, A, y, theta0, regressor_of) -> ClosedLoopEstima
     theta = np.asarray(theta0, dtype=float)
     w = joint_weights(A, y, theta)
     moves, converged, cov = [], False, None
-    it = 0
-    for it in range(1, MAX_ITER + 1):
+    for _ in range(MAX_ITER):
         Z = regressor_of(theta)
         if method == "iv":
             new, cov = iv_solve(A, y, Z, w)
@@ -104,7 +108,7 @@ def closed_loop_fit(method: str, A, y, theta0, regressor_of) -> ClosedLoopEstima
         std = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
         moves.append(float(np.max(np.abs(new - theta) / std)))
         theta = new
-        if moves[-1] < TOL_STD:
+        if moves[-1] < TOL_STD[method]:
             converged = True
             break
-    return ClosedLoopEstimate(theta, cov, it, converged, moves)
+    return ClosedLoopEstimate(theta, cov, len(moves), converged, moves)
