@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from badinput_tools import assert_ok_or_one_line, invoke, one_blas_thread
 
-from guardid.closedloop.fit import iv_solve, joint_weights
+from guardid.closedloop.fit import MAX_ITER, closed_loop_fit, iv_solve, joint_weights
 from guardid.closedloop.simulate import BaseDynamics, simulate
 from guardid.dynamics import build_model
 from guardid.identify import identify
@@ -104,6 +104,27 @@ def test_iv_instruments_remove_the_errors_in_variables_bias():
     ls, *_ = np.linalg.lstsq(seen[:, 0], y[:, 0], rcond=None)
     assert abs(ls[0] - 2.0 / 1.25) < 0.02  # the classical attenuation
     assert abs(theta[0] - 2.0) < 4 * math.sqrt(cov[0, 0])
+
+
+def test_an_iteration_that_does_not_settle_says_so():
+    """A 'simulation' whose regressor alternates with the iteration never settles: the fit
+    stops at the cap and reports it; a fixed one (Z = A) settles at once."""
+    rng = np.random.default_rng(5)
+    A = rng.normal(size=(200, 2, 2))
+    y = A @ np.array([1.0, 2.0]) + rng.normal(scale=0.05, size=(200, 2))
+    other = (A + rng.normal(size=A.shape), A + rng.normal(size=A.shape))
+    calls = []
+
+    def alternating(theta):
+        calls.append(1)
+        return other[len(calls) % 2]
+
+    for method in ("iv", "didim"):
+        calls.clear()
+        est = closed_loop_fit(method, A, y, np.array([1.0, 2.0]), alternating)
+        assert not est.converged and est.iterations == MAX_ITER == len(calls)
+        settled = closed_loop_fit(method, A, y, np.array([1.0, 2.0]), lambda theta: A)
+        assert settled.converged and settled.iterations <= 2
 
 
 @pytest.fixture(scope="module")
