@@ -180,3 +180,20 @@ def test_missing_setpoints_or_pid_is_one_line(quiet_log, tmp_path):
     assert res.exit_code != 0
     assert_ok_or_one_line(res, "no pid")
     assert "pid" in res.stderr and "joints[0]" in res.stderr
+
+
+def test_several_runs_stack_their_simulations(quiet_log):
+    """The same run given twice: each is simulated and conditioned on its own and the rows
+    stacked, so IV's estimate is the single run's and its std 1/sqrt(2) of it."""
+    from guardid.conditioning.options import ConditioningOptions
+
+    run = load_run(quiet_log)
+    opts = ConditioningOptions(cutoff_hz=4.0)
+    args = (run.t, run.q, run.current, run.voltage, run.ticks, run.setpoint)
+    one = identify(*args[:3], GUARD, methods=("iv",), conditioning=opts, voltage_v=args[3],
+                   ticks=args[4], setpoints=args[5]).results["iv"]  # fmt: skip
+    two = identify(*[[a, a] for a in args[:3]], GUARD, methods=("iv",), conditioning=opts,
+                   voltage_v=[args[3]] * 2, ticks=[args[4]] * 2,
+                   setpoints=[args[5]] * 2).results["iv"]  # fmt: skip
+    np.testing.assert_allclose(two.theta, one.theta, atol=0.05 * one.std.min())
+    np.testing.assert_allclose(two.std * math.sqrt(2), one.std, rtol=0.02)

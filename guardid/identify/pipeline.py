@@ -191,8 +191,13 @@ def identify(
     model = build_model(description)
     several = isinstance(t_s, (list, tuple))
     runs = list(zip(t_s, q_rad, current_a, strict=True)) if several else [(t_s, q_rad, current_a)]
-    as_list = (lambda x: list(x)) if several else (lambda x: [x])  # noqa: E731
-    loop_inputs = (runs, as_list(ticks), as_list(setpoints), as_list(voltage_v))
+    loop_inputs = (
+        runs,
+        *[
+            list(x) if several and x is not None else [x] * len(runs)
+            for x in (ticks, setpoints, voltage_v)
+        ],
+    )  # per run (closedloop)
     if qd is not None:
         runs = [(*r, v) for r, v in zip(runs, qd if several else [qd], strict=True)]
     rows = stacked_rows(
