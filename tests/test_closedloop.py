@@ -14,6 +14,7 @@ import pytest
 from badinput_tools import assert_ok_or_one_line, invoke, one_blas_thread
 
 from guardid.closedloop.fit import MAX_ITER, closed_loop_fit, iv_solve, joint_weights
+from guardid.closedloop.rows import start_state
 from guardid.closedloop.simulate import BaseDynamics, simulate
 from guardid.dynamics import build_model
 from guardid.identify import identify
@@ -66,9 +67,8 @@ def test_simulated_loop_follows_the_captured_motion(quiet_log):
     a few encoder counts of what the whole stack recorded (pan 1, tilt ~12 of a tracking
     error of hundreds: the tilt sticks and slips)."""
     run = load_run(quiet_log)
-    q0 = run.q[0] + COUNT_RAD / 2
-    qd0 = (run.q[1] - run.q[0]) / (run.t[1] - run.t[0])
-    q_sim = simulate(GUARD, MODEL, TRUTH, run.ticks, run.setpoint, q0, qd0, run.voltage[1])
+    start = start_state((run.t, run.q, run.current), run.ticks, run.voltage, COUNT_RAD / 2)
+    q_sim = simulate(GUARD, MODEL, TRUTH, run.ticks, run.setpoint, *start)
     err_counts = np.abs(q_sim - run.q) / COUNT_RAD
     track_counts = np.abs(run.setpoint - run.q).max(axis=0) / COUNT_RAD
     assert np.all(track_counts > 100)  # the loop does lag: a follower of sp would fail

@@ -65,7 +65,7 @@ def regressor_builder(data: ClosedLoopRuns, description, model, free, rows, flag
     mask = rows.cond.mask
     half_count = np.array([np.pi / (j.drive.gear_ratio * j.encoder.counts_per_rev)
                            for j in description.joints])  # fmt: skip
-    starts = [_start(run, tk, v, half_count) for run, tk, v in
+    starts = [start_state(run, tk, v, half_count) for run, tk, v in
               zip(data.runs, data.ticks, data.voltages, strict=True)]  # fmt: skip
 
     def regressor_of(theta_free):
@@ -92,7 +92,7 @@ def regressor_builder(data: ClosedLoopRuns, description, model, free, rows, flag
     return regressor_of
 
 
-def _start(run, ticks, voltage, half_count):
+def start_state(run, ticks, voltage, half_count):
     """(q0 [rad], qd0 [rad/s], u0 [V] or None): the first row's position (the middle of its
     encoder count, ``half_count`` (n,) [rad]), the velocity of the first tick and the
     voltage the log reports for the period after the first row."""
