@@ -17,7 +17,8 @@ spread/std anywhere in [0.56, 1.48] over 12 parameters; 100 seeds narrow it to 0
 [0.80, 1.21].
 
     python bench/bench_std_check.py [--seeds 20] [--duration 60] [--methods ls,wls]
-                                    [--excitations default,tracking] [--keep DIR] [--fixed-phase]
+                                    [--excitations default,tracking] [--keep DIR [--reuse]]
+                                    [--fixed-phase]
 """
 
 from __future__ import annotations
@@ -52,17 +53,21 @@ def truth_values() -> dict[str, float]:
     return dict(zip(model.base.names, model.base.values(model.params), strict=True))
 
 
-def collect(excitation: str, seeds, duration: float, methods: str, work: Path, phase=True):
-    """Per method: names (p,), estimates (S, p), stds (S, p) or None over the seeds."""
+def collect(excitation: str, seeds, duration: float, methods: str, work: Path, phase=True,
+            reuse=False):  # fmt: skip
+    """Per method: names (p,), estimates (S, p), stds (S, p) or None over the seeds.
+    ``reuse``: a trajectory or log already in ``work`` (an earlier ``--keep``) is used as is."""
     traj = work / f"traj_{excitation}.yaml"
-    _guardid("excite", "--robot", "guard", "-o", str(traj), *EXCITATIONS[excitation])
+    if not (reuse and traj.exists()):
+        _guardid("excite", "--robot", "guard", "-o", str(traj), *EXCITATIONS[excitation])
     out: dict[str, dict] = {}
     for seed in seeds:
         log = work / f"{excitation}_{seed}.csv"
         params = work / f"{excitation}_{seed}.yaml"
         port = f"sim://guard?seed={seed}" + ("&phase=1" if phase else "")
-        _guardid("capture", "--trajectory", str(traj), "--duration", f"{duration:g}",
-                 "--port", port, "--quiet", "--force", "-o", str(log))  # fmt: skip
+        if not (reuse and log.exists()):
+            _guardid("capture", "--trajectory", str(traj), "--duration", f"{duration:g}",
+                     "--port", port, "--quiet", "--force", "-o", str(log))  # fmt: skip
         params.unlink(missing_ok=True)  # identify does not replace a file
         _guardid("identify", str(log), "--method", methods, "-o", str(params))
         data = yaml.safe_load(params.read_text())
@@ -133,13 +138,16 @@ def main() -> None:
     ap.add_argument("--excitations", default="default,tracking", help="default,tracking")
     ap.add_argument("--keep", default=None, help="keep logs and params here")
     ap.add_argument("--fixed-phase", action="store_true", help="every seed starts on the grid")
+    ap.add_argument("--reuse", action="store_true",
+                    help="with --keep: use the trajectories and logs already there")  # fmt: skip
     a = ap.parse_args()
     truth = truth_values()
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(a.keep) if a.keep else Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
         for exc in a.excitations.split(","):
-            results = collect(exc, range(a.seeds), a.duration, a.methods, work, not a.fixed_phase)
+            results = collect(exc, range(a.seeds), a.duration, a.methods, work, not a.fixed_phase,
+                              a.reuse and a.keep is not None)  # fmt: skip
             for m, (names, theta, std) in results.items():
                 if std is None:
                     continue

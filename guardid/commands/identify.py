@@ -144,12 +144,14 @@ def _arrays(runs):
     several = len(runs) > 1
     out = {
         k: [getattr(r, k) for r in runs] if several else getattr(runs[0], k)
-        for k in ("t", "q", "current", "voltage", "ticks", "qd")
+        for k in ("t", "q", "current", "voltage", "ticks", "qd", "setpoint")
     }
     if several and any(v is None for v in out["voltage"] + out["ticks"]):
         out["voltage"] = out["ticks"] = None
     if several and any(v is None for v in out["qd"]):
         out["qd"] = None
+    if several and any(v is None for v in out["setpoint"]):
+        out["setpoint"] = None
     return out
 
 
@@ -161,7 +163,10 @@ def _arrays(runs):
     default="ls,wls,rls,hopfield",
     show_default=True,
     help="Comma-separated: ls, wls, bls (bounded: friction and rotor inertia >= 0), rls, "
-    "hopfield, gradient, mlp.",
+    "hopfield, gradient, mlp, iv (IDIM-IV: instruments from a simulation of the closed loop "
+    "with the log's setpoints, the robot's pid: and the estimate), didim (closed-loop output "
+    "error on the simulated regressor); iv and didim need a guardid log with sp_* columns "
+    "and a robot with motors, encoders and pid:.",
 )
 @click.option("--cutoff", type=_POSITIVE, default=None, help=_CUTOFF_HELP)
 @click.option("--beta", type=_POSITIVE, default=0.01, show_default=True, help="Hopfield gain beta.")
@@ -241,6 +246,7 @@ def identify(
         conditioning=options, beta=beta, lam=lam, gradient_eta=eta, voltage_v=arrays["voltage"],
         ticks=arrays["ticks"], in_current_units=current_units, effort_is_torque=run.torque,
         highest_harmonic_hz=_highest_harmonic(log, run), qd=arrays["qd"],
+        setpoints=arrays["setpoint"],
     )  # fmt: skip
     if result.untrusted and not force:
         raise UntrustedResult(

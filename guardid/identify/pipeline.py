@@ -45,7 +45,7 @@ from guardid.identify.trust import (
 )
 from guardid.identify.untrusted import trust_problems
 
-METHODS = ("ls", "wls", "bls", "rls", "hopfield", "gradient", "mlp")
+METHODS = ("ls", "wls", "bls", "rls", "hopfield", "gradient", "mlp", "iv", "didim")
 POOR_REL_STD_PCT = 10.0  #: warn when a parameter's relative standard deviation exceeds this
 REFERENCE_METHODS = ("wls", "ls")
 """The method whose estimate and std a report's verdict uses: the first of these that ran.
@@ -150,6 +150,7 @@ def identify(
     hopfield_nominal=None,
     hopfield_settle: bool = False,
     qd=None,
+    setpoints=None,
 ) -> Identification:
     """Identify the base parameters of ``description`` from one run (or several).
 
@@ -177,13 +178,26 @@ def identify(
     never spans two runs). ``qd`` (N, n) [rad/s | m/s] (a list for several runs): measured
     joint velocities, used instead of the differentiated positions. ``bls`` is least squares
     with friction and rotor inertia kept >= 0 (:mod:`guardid.identify.trust`).
+    ``iv`` and ``didim`` (:mod:`guardid.closedloop`) simulate the closed loop: they need
+    ``setpoints`` (N, n) [rad] (a list for several runs), ``ticks`` and ``voltage_v``.
     """
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
         raise GuardidError(f"--method: unknown {', '.join(unknown)} (known: {', '.join(METHODS)})")
+    if "iv" in methods or "didim" in methods:
+        from guardid.closedloop import check_inputs
+
+        check_inputs(methods, description, setpoints, ticks)
     model = build_model(description)
     several = isinstance(t_s, (list, tuple))
     runs = list(zip(t_s, q_rad, current_a, strict=True)) if several else [(t_s, q_rad, current_a)]
+    loop_inputs = (
+        runs,
+        *[
+            list(x) if several and x is not None else [x] * len(runs)
+            for x in (ticks, setpoints, voltage_v)
+        ],
+    )  # per run (closedloop)
     if qd is not None:
         runs = [(*r, v) for r, v in zip(runs, qd if several else [qd], strict=True)]
     rows = stacked_rows(
@@ -203,6 +217,7 @@ def identify(
     nominal = model.base.values(model.params)[free]
     dt = float(np.median(np.diff(cond.t[cond.mask])))
     results: dict[str, MethodResult] = {}
+    closed_loop_notes: list[str] = []
     ls = LeastSquares().fit(A, y)
     for method in methods:
         if method == "ls":
@@ -219,6 +234,12 @@ def identify(
             online_end = np.array(est.theta_)
             if hopfield_settle:
                 eq = copy.deepcopy(est).settle(A, y)
+        elif method in ("iv", "didim"):  # closed-loop consistent (guardid.closedloop)
+            from guardid.closedloop import fit_closed_loop
+
+            est, note = fit_closed_loop(method, A, y, rows, loop_inputs, description, model,
+                                        free, (in_current_units, effort_is_torque))  # fmt: skip
+            closed_loop_notes += note
         elif method == "mlp":  # seed 001's network; inputs (q, q', q'') of the usable rows
             m = cond.mask
             est = MLP().fit(A, y, X=np.hstack([cond.q[m], cond.qd[m], cond.qdd[m]]))
@@ -243,7 +264,7 @@ def identify(
         for name, r in zip(names, rel_std, strict=True)
         if r > POOR_REL_STD_PCT
     ]
-    warnings += rows.warnings + _moving_with_cutoff(rows.choice, names, ls)
+    warnings += rows.warnings + _moving_with_cutoff(rows.choice, names, ls) + closed_loop_notes
     warnings += mark_not_converged(results, ls)
     warnings += impossible_values(model, free, names, ls, cond, in_current_units)
     motors = []

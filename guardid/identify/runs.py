@@ -33,6 +33,7 @@ class Run:
     qd: np.ndarray | None = None  # measured joint velocities [rad/s | m/s] (foreign qd<j>)
     robot_name: str | None = None  # the robot named in a guardid log's header
     joint_names: tuple[str, ...] | None = None  # a guardid log's joints (column names)
+    setpoint: np.ndarray | None = None  # a guardid log's sp_* columns [rad] (N, n)
 
 
 def load_run(path, sample_period_s: float | None = None, mapping=None, description=None) -> Run:
@@ -69,6 +70,8 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
             raise LogFormatError(f"{path}: no {key}_* columns (expected one per joint)")
     q = data.joint_array("q")
     current = data.joint_array("i")
+    has_sp = any(c.startswith("sp_") for c in data.columns)
+    setpoint = data.joint_array("sp") if has_sp else None
     has_v = any(c.startswith("v_") for c in data.columns)
     voltage = data.joint_array("v") if has_v else np.empty((len(ticks), 0))  # optional
     joints = data.joint_names
@@ -88,6 +91,7 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
         highest_harmonic_hz=trajectory_highest_harmonic(data.header.get("trajectory")),
         robot_name=data.header.get("robot"),
         joint_names=tuple(data.joint_names),
+        setpoint=setpoint if setpoint is not None and setpoint.shape == q.shape else None,
     )
 
 

@@ -1,0 +1,38 @@
+"""Closed-loop consistent identification: IDIM-IV and DIDIM (``identify --method iv,didim``).
+
+Data from the guard robot come from a closed loop: the PID feeds the measurement noise
+back into the motion, so the regressor built from the measured positions is correlated
+with the torque's error and least squares is biased. Both methods here replace the
+measured motion's regressor (IV: as instruments; DIDIM: as the model's output) by that of
+a noise-free simulation of the same closed loop with the current estimate
+(:mod:`~guardid.closedloop.simulate`: the firmware emulator's PID and limits, the plant's
+motors and friction, the estimate's rigid body), conditioned like the measured rows
+(:mod:`~guardid.closedloop.rows`), and iterate (:mod:`~guardid.closedloop.fit`).
+"""
+
+from __future__ import annotations
+
+from guardid.closedloop.fit import MAX_ITER, ClosedLoopEstimate, closed_loop_fit
+from guardid.closedloop.rows import ClosedLoopRuns, check_inputs, regressor_builder
+
+
+def fit_closed_loop(method, A, y, rows, inputs, description, model, free, flags):
+    """(estimate, warnings) of ``method`` ('iv' | 'didim') on the measured rows A (M, n, b'),
+    y (M, n) of :class:`~guardid.identify.rows.Rows` ``rows``; ``inputs`` = (runs, ticks,
+    setpoints, voltages), one entry per run; starts from WLS."""
+    from guardid.estimators import WeightedLeastSquares
+
+    data = ClosedLoopRuns(*inputs)
+    regressor_of = regressor_builder(data, description, model, free, rows, flags)
+    start = WeightedLeastSquares().fit(A, y).theta_
+    est = closed_loop_fit(method, A, y, start, regressor_of)
+    notes = []
+    if not est.converged:
+        notes.append(
+            f"{method}: not converged after {MAX_ITER} closed-loop simulations (last step "
+            f"{est.moves[-1]:.2g} std): its estimate and std are not final"
+        )
+    return est, notes
+
+
+__all__ = ["ClosedLoopEstimate", "check_inputs", "closed_loop_fit", "fit_closed_loop"]

@@ -1,0 +1,102 @@
+"""The simulated closed loop's regressor on the measured identification rows.
+
+The simulated positions of each run go through the measured run's conditioning
+(:func:`guardid.identify.rows._condition_run` with the resolved options: the same cut-off,
+filter, decimation and friction-column filter; no fallback), and the rows the measured
+run kept (its mask) are taken, so that Z lines up with the measured A row for row.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from guardid.closedloop.simulate import check_simulable, simulate
+from guardid.errors import GuardidError
+from guardid.identify.rows import _condition_run
+
+
+@dataclass
+class ClosedLoopRuns:
+    """Per run: ``runs`` (t [s], q [rad], effort[, qd]) as given to identification,
+    ``ticks`` (N,), ``setpoints`` [rad] (N, n), ``voltages`` [V] (N, n) or None."""
+
+    runs: list
+    ticks: list
+    setpoints: list
+    voltages: list
+
+
+def check_inputs(methods, description, setpoints, ticks) -> None:
+    """One-line GuardidError when a closed-loop method is asked for and the log has no
+    setpoints or ticks, or the robot cannot be simulated in closed loop."""
+    wanted = [m for m in methods if m in ("iv", "didim")]
+    if not wanted:
+        return
+    label = "--method " + ",".join(wanted)
+    sps = setpoints if isinstance(setpoints, (list, tuple)) else [setpoints]
+    tks = ticks if isinstance(ticks, (list, tuple)) else [ticks]
+    if any(s is None or np.size(s) == 0 for s in sps):
+        raise GuardidError(
+            f"{label}: the log has no setpoints (sp_<joint> columns of a guardid capture "
+            "log): the closed-loop simulation is driven by what the robot was told to track"
+        )
+    if any(t is None for t in tks):
+        raise GuardidError(f"{label}: the log has no tick column: the closed loop needs it")
+    try:
+        check_simulable(description)
+    except GuardidError as exc:
+        raise GuardidError(str(exc).replace("--method iv/didim", label)) from None
+
+
+def regressor_builder(data: ClosedLoopRuns, description, model, free, rows, flags):
+    """``regressor_of(theta_free)`` -> Z (M, n, b') on ``rows``' kept rows (see module).
+
+    ``rows``: the measured :class:`~guardid.identify.rows.Rows`; ``flags``:
+    (in_current_units, effort_is_torque)."""
+    used = rows.options
+    if used.parallel_filter_hz:
+        raise GuardidError(
+            "--method iv/didim: not with the parallel filter (give --parallel-filter 0)"
+        )
+    used = replace(used, decimate=rows.cond.decimation)
+    base = model.base.values(model.params)
+    mask = rows.cond.mask
+    half_count = np.array([np.pi / (j.drive.gear_ratio * j.encoder.counts_per_rev)
+                           for j in description.joints])  # fmt: skip
+    starts = [start_state(run, tk, v, half_count) for run, tk, v in
+              zip(data.runs, data.ticks, data.voltages, strict=True)]  # fmt: skip
+
+    def regressor_of(theta_free):
+        theta = base.copy()
+        theta[free] = theta_free
+        parts = []
+        for run, tk, sp, (q0, qd0, u0) in zip(data.runs, data.ticks, data.setpoints, starts,
+                                             strict=True):  # fmt: skip
+            q_sim = simulate(description, model, theta, tk, sp, q0, qd0, u0)
+            t, _, effort, *_ = run
+            _, A_all, *_ = _condition_run(
+                (t, q_sim, effort), description, used, used.cutoff_hz, *flags, model, free,
+                used.friction_filter, fallback=False,
+            )  # fmt: skip
+            parts.append(A_all)
+        Z = np.concatenate(parts)
+        if len(Z) != len(mask):
+            raise GuardidError(
+                f"--method iv/didim: the simulated run conditioned to {len(Z)} samples, "
+                f"the measured one to {len(mask)}"
+            )
+        return Z[mask]
+
+    return regressor_of
+
+
+def start_state(run, ticks, voltage, half_count):
+    """(q0 [rad], qd0 [rad/s], u0 [V] or None): the first row's position (the middle of its
+    encoder count, ``half_count`` (n,) [rad]), the velocity of the first tick and the
+    voltage the log reports for the period after the first row."""
+    t, q = np.asarray(run[0], dtype=float), np.asarray(run[1], dtype=float)
+    qd0 = (q[1] - q[0]) / (t[1] - t[0])
+    u0 = None if voltage is None or np.size(voltage) == 0 else np.asarray(voltage)[1]
+    return q[0] + half_count, qd0, u0

@@ -1,0 +1,202 @@
+"""Closed-loop identification (``identify --method iv,didim``, guardid.closedloop).
+
+Truths: the robot YAML the simulator runs (its base parameters, and its rigid body by
+recursive Newton-Euler on the physical parameters), a capture through the whole fake-port
+stack (link, firmware emulator, plant), and least squares worked out with numpy.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from badinput_tools import assert_ok_or_one_line, invoke, one_blas_thread
+
+from guardid.closedloop.fit import MAX_ITER, closed_loop_fit, iv_solve, joint_weights
+from guardid.closedloop.rows import start_state
+from guardid.closedloop.simulate import BaseDynamics, simulate
+from guardid.dynamics import build_model
+from guardid.identify import identify
+from guardid.identify.pipeline import identified_names
+from guardid.identify.runs import load_run
+from guardid.robot import load_robot
+
+GUARD = load_robot("guard")
+MODEL = build_model(GUARD)
+TRUTH = MODEL.base.values(MODEL.params)
+COUNT_RAD = np.array([2 * math.pi / (j.drive.gear_ratio * j.encoder.counts_per_rev)
+                      for j in GUARD.joints])  # fmt: skip
+
+
+def _capture(directory, port: str, seconds: int, optimise: bool):
+    traj = directory / "traj.yaml"
+    res = invoke("excite", *(() if optimise else ("--no-optimise",)), "-o", traj)
+    assert res.exit_code == 0, res.output
+    log = directory / "run.csv"
+    res = invoke("capture", "--trajectory", traj, "--duration", seconds, "--quiet",
+                 "--port", port, "-o", log)  # fmt: skip
+    assert res.exit_code == 0, res.output
+    return log
+
+
+@pytest.fixture(scope="module")
+def quiet_log(tmp_path_factory):
+    """10 s, noise off, off the encoder grid (phase): the simulator's reference motion."""
+    return _capture(tmp_path_factory.mktemp("cl_quiet"), "sim://guard?noise=0&phase=1&seed=4",
+                    10, optimise=False)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def noisy_log(tmp_path_factory):
+    """30 s on the optimised excitation, sensor noise on."""
+    return _capture(tmp_path_factory.mktemp("cl_noisy"), "sim://guard?seed=3&phase=1", 30,
+                    optimise=True)  # fmt: skip
+
+
+def test_base_dynamics_match_newton_euler_on_physical_parameters():
+    rng = np.random.default_rng(1)
+    q, qd = rng.uniform(-2, 2, (7, 2)), rng.uniform(-1, 1, (7, 2))
+    dyn = BaseDynamics(MODEL, TRUTH)
+    np.testing.assert_allclose(dyn.mass_matrix(q), MODEL.mass_matrix(q), atol=1e-12)
+    np.testing.assert_allclose(dyn.bias(q, qd), MODEL.bias(q, qd), atol=1e-12)
+
+
+def test_simulated_loop_follows_the_captured_motion(quiet_log):
+    """The same setpoints and the true parameters: the simulated closed loop stays within
+    a few encoder counts of what the whole stack recorded (pan 1, tilt ~12 of a tracking
+    error of hundreds: the tilt sticks and slips)."""
+    run = load_run(quiet_log)
+    start = start_state((run.t, run.q, run.current), run.ticks, run.voltage, COUNT_RAD / 2)
+    q_sim = simulate(GUARD, MODEL, TRUTH, run.ticks, run.setpoint, *start)
+    err_counts = np.abs(q_sim - run.q) / COUNT_RAD
+    track_counts = np.abs(run.setpoint - run.q).max(axis=0) / COUNT_RAD
+    assert np.all(track_counts > 100)  # the loop does lag: a follower of sp would fail
+    assert err_counts[:, 0].max() < 3 and err_counts[:, 1].max() < 20, err_counts.max(axis=0)
+    assert np.sqrt(np.mean(err_counts**2, axis=0)).max() < 8
+    # the start: velocity from the first two rows, PID integral from the next voltage
+    # (either left at zero puts the tilt 9-40 counts off in the first 0.3 s)
+    assert err_counts[:20].max() < 5, err_counts[:20].max(axis=0)
+
+
+def test_iv_with_the_regressor_as_instruments_is_least_squares():
+    rng = np.random.default_rng(7)
+    A = rng.normal(size=(50, 2, 3))
+    y = A @ np.array([1.0, -2.0, 0.5]) + rng.normal(scale=[0.1, 0.4], size=(50, 2))
+    w = np.array([2.0, 0.5])
+    theta, cov = iv_solve(A, y, A, w)
+    a = (A * w[None, :, None]).reshape(-1, 3)
+    b = (y * w).reshape(-1)
+    ref, *_ = np.linalg.lstsq(a, b, rcond=None)
+    r = b - a @ ref
+    np.testing.assert_allclose(theta, ref, rtol=1e-10)
+    np.testing.assert_allclose(cov, r @ r / (100 - 3) * np.linalg.inv(a.T @ a), rtol=1e-8)
+    # per-joint weights are the inverse residual std (dof 50 - 3 per joint)
+    res = y - A @ ref
+    np.testing.assert_allclose(joint_weights(A, y, ref), np.sqrt(47 / np.sum(res**2, axis=0)))
+
+
+def test_iv_instruments_remove_the_errors_in_variables_bias():
+    """y = 2 x + e with x observed as x + u (u correlated with nothing): LS is biased by
+    var(x) / (var(x) + var(u)); an instrument seeing x alone is not. Std from its formula."""
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(20000, 1, 1))
+    seen = x + rng.normal(scale=0.5, size=x.shape)
+    y = 2.0 * x[:, :, 0] + rng.normal(scale=0.1, size=(20000, 1))
+    theta, cov = iv_solve(seen, y, 0.5 * x, np.ones(1))  # IV ignores the instrument's scale
+    ls, *_ = np.linalg.lstsq(seen[:, 0], y[:, 0], rcond=None)
+    assert abs(ls[0] - 2.0 / 1.25) < 0.02  # the classical attenuation
+    assert abs(theta[0] - 2.0) < 4 * math.sqrt(cov[0, 0])
+
+
+def test_an_iteration_that_does_not_settle_says_so():
+    """A 'simulation' whose regressor alternates with the iteration never settles: the fit
+    stops at the cap and reports it; a fixed one (Z = A) settles at once."""
+    rng = np.random.default_rng(5)
+    A = rng.normal(size=(200, 2, 2))
+    y = A @ np.array([1.0, 2.0]) + rng.normal(scale=0.05, size=(200, 2))
+    other = (A + rng.normal(size=A.shape), A + rng.normal(size=A.shape))
+    calls = []
+
+    def alternating(theta):
+        calls.append(1)
+        return other[len(calls) % 2]
+
+    for method in ("iv", "didim"):
+        calls.clear()
+        est = closed_loop_fit(method, A, y, np.array([1.0, 2.0]), alternating)
+        assert not est.converged and est.iterations == MAX_ITER == len(calls)
+        settled = closed_loop_fit(method, A, y, np.array([1.0, 2.0]), lambda theta: A)
+        assert settled.converged and settled.iterations <= 2
+
+
+@pytest.fixture(scope="module")
+def closed_loop_result(noisy_log):
+    run = load_run(noisy_log)
+    with one_blas_thread():
+        return identify(run.t, run.q, run.current, GUARD, methods=("wls", "iv", "didim"),
+                        voltage_v=run.voltage, ticks=run.ticks, setpoints=run.setpoint,
+                        highest_harmonic_hz=run.highest_harmonic_hz)  # fmt: skip
+
+
+@pytest.mark.parametrize("method", ["iv", "didim"])
+def test_closed_loop_methods_recover_the_truth_within_their_std(closed_loop_result, method):
+    values = dict(zip(MODEL.base.names, TRUTH, strict=True))
+    truth = np.array([values[n] for n in identified_names(GUARD)])
+    r = closed_loop_result.results[method]
+    assert np.all(np.isfinite(r.std)) and np.all(r.std > 0)
+    z = (r.theta - truth) / r.std
+    assert np.all(np.abs(z) < 3.5), dict(zip(closed_loop_result.names, np.round(z, 2), strict=True))
+    # not WLS under another name: the simulated regressor moved the estimate
+    assert np.any(r.theta != closed_loop_result.results["wls"].theta)
+    assert not any("not converged" in w for w in closed_loop_result.warnings)
+
+
+def _without_setpoints(log, out):
+    lines = log.read_text().splitlines(keepends=True)
+    header = next(i for i, x in enumerate(lines) if x.startswith("tick,"))
+    names = lines[header].rstrip("\n").split(",")
+    keep = [i for i, n in enumerate(names) if not n.startswith("sp_")]
+    text = []
+    for line in lines:
+        if line.startswith("#") or not line.strip():
+            text.append(line if "- sp_" not in line else "")
+        else:
+            cells = line.rstrip("\n").split(",")
+            text.append(",".join(cells[k] for k in keep) + "\n")
+    out.write_text("".join(text))
+    return out
+
+
+def test_missing_setpoints_or_pid_is_one_line(quiet_log, tmp_path):
+    log = _without_setpoints(quiet_log, tmp_path / "nosp.csv")
+    res = invoke("identify", log, "--method", "ls")  # the log itself is fine
+    assert res.exit_code == 0, res.stderr
+    res = invoke("identify", log, "--method", "iv")
+    assert res.exit_code != 0
+    assert_ok_or_one_line(res, "no setpoints")
+    assert "setpoints" in res.stderr and "--method iv" in res.stderr
+    robot = tmp_path / "guard.yaml"
+    text = open(GUARD.source, encoding="utf-8").read()
+    robot.write_text("".join(x for x in text.splitlines(keepends=True) if "pid:" not in x))
+    res = invoke("identify", quiet_log, "--robot", robot, "--method", "didim")
+    assert res.exit_code != 0
+    assert_ok_or_one_line(res, "no pid")
+    assert "pid" in res.stderr and "joints[0]" in res.stderr
+
+
+def test_several_runs_stack_their_simulations(quiet_log):
+    """The same run given twice: each is simulated and conditioned on its own and the rows
+    stacked, so IV's estimate is the single run's and its std 1/sqrt(2) of it."""
+    from guardid.conditioning.options import ConditioningOptions
+
+    run = load_run(quiet_log)
+    opts = ConditioningOptions(cutoff_hz=4.0)
+    args = (run.t, run.q, run.current, run.voltage, run.ticks, run.setpoint)
+    one = identify(*args[:3], GUARD, methods=("iv",), conditioning=opts, voltage_v=args[3],
+                   ticks=args[4], setpoints=args[5]).results["iv"]  # fmt: skip
+    two = identify(*[[a, a] for a in args[:3]], GUARD, methods=("iv",), conditioning=opts,
+                   voltage_v=[args[3]] * 2, ticks=[args[4]] * 2,
+                   setpoints=[args[5]] * 2).results["iv"]  # fmt: skip
+    np.testing.assert_allclose(two.theta, one.theta, atol=0.05 * one.std.min())
+    np.testing.assert_allclose(two.std * math.sqrt(2), one.std, rtol=0.02)
