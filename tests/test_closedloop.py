@@ -200,3 +200,15 @@ def test_several_runs_stack_their_simulations(quiet_log):
                    setpoints=[args[5]] * 2).results["iv"]  # fmt: skip
     np.testing.assert_allclose(two.theta, one.theta, atol=0.05 * one.std.min())
     np.testing.assert_allclose(two.std * math.sqrt(2), one.std, rtol=0.02)
+
+
+def test_cross_validation_runs_the_closed_loop_methods(quiet_log, tmp_path):
+    """``identify --cv --method wls,iv``: every fold gets its training runs' setpoints, ticks
+    and voltages, so IV is scored beside WLS (it once stopped with "no setpoints"); on two
+    noise-free runs of one excitation, IV's held-out error is WLS's within 10 %."""
+    second = _capture(tmp_path, "sim://guard?noise=0&phase=1&seed=5", 10, optimise=False)
+    res = invoke("identify", quiet_log, second, "--method", "wls,iv", "--cv", "--cutoff", "4")
+    assert res.exit_code == 0, res.output
+    mean = next(line for line in res.output.splitlines() if line.startswith("mean"))
+    wls, iv = (float(x.rstrip("%")) for x in mean.split()[1:3])
+    assert iv == pytest.approx(wls, rel=0.10)

@@ -23,11 +23,16 @@ def fold_scores(runs, description, methods, options, *, current_units=False, set
     for i, held in enumerate(runs):
         train = [r for k, r in enumerate(runs) if k != i]
         qd = [getattr(r, "qd", None) for r in train]
+        loop = {}  # iv / didim: the closed loop's inputs, when every training run has them
+        closed = ("setpoints", "setpoint"), ("ticks", "ticks"), ("voltage_v", "voltage")
+        for key, attr in closed if {"iv", "didim"} & set(methods) else ():
+            values = [getattr(r, attr, None) for r in train]
+            loop[key] = None if any(v is None for v in values) else values
         result = identify(
             [r.t for r in train], [r.q for r in train], [r.current for r in train],
             description, methods=methods, conditioning=options,
             in_current_units=current_units, effort_is_torque=torque,
-            qd=None if any(v is None for v in qd) else qd, **settings,
+            qd=None if any(v is None for v in qd) else qd, **loop, **settings,
         )  # fmt: skip
         nominal = dict(zip(result.names, result.nominal, strict=True))
         sets = []
