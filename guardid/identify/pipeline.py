@@ -50,10 +50,12 @@ POOR_REL_STD_PCT = 10.0  #: warn when a parameter's relative standard deviation 
 REFERENCE_METHODS = ("wls", "ls")
 """The method whose estimate and std a report's verdict uses: the first of these that ran.
 WLS, because its std matches the spread of its estimates over seeds on the guard robot's
-closed loop (``bench/bench_std_check.py``: spread / std 0.82-1.21 on the default and the
-tracking excitation, 20 seeds), where LS's pooled noise level makes the pan parameters'
-std up to 1.5x too large and the tilt's up to 1.5x too small (its two joints' residuals
-differ by a factor of several)."""
+closed loop (``bench/bench_std_check.py``, 100 seeds: spread / std 0.84-1.11 on the
+default and the tracking excitation, truth within 3 std in >= 99.7 % of pairs), where LS's
+pooled noise level makes the pan parameters' std up to 1.35x too large and the tilt's up to
+1.35x too small (its two joints' residuals differ by a factor of several). IV and DIDIM
+are not in the list: they need a guardid log with setpoints, and IV's figures equal WLS's
+there."""
 
 
 def reference_method(results) -> str | None:
