@@ -60,71 +60,56 @@ def fit_two_revolute(model, params, seed: int = 12345):
     return dyn
 
 
-def _make(cm, cg):
-    (a0, a1, a2, a3, a4), (b0, b1, b2, b3, b4), (c0, c1, c2, c3, c4) = (x.tolist() for x in cm)
-    g10, g11, g12, g13, g14, g15, g16, g17, g18 = cg[0].tolist()
-    g20, g21, g22, g23, g24, g25, g26, g27, g28 = cg[1].tolist()
-    cos, sin = math.cos, math.sin
+# The terms both evaluators share, written once: M(q2) and D = dM/dq2 from the fitted
+# coefficients, and the gravity torque. ``_FACTORY`` turns them into two closures over the
+# coefficients (closure variables, as if written by hand, so the evaluators stay as fast).
+_TERMS = """\
+c = cos(q2)
+s = sin(q2)
+cc = c * c
+sc = s * c
+# derivatives wrt q2: d(c) = -s, d(s) = c, d(cc) = -2 sc, d(sc) = cc - s s
+d_c = -s
+d_cc = -2.0 * sc
+d_sc = cc - s * s
+m11 = a0 + a1 * c + a2 * s + a3 * cc + a4 * sc
+m12 = b0 + b1 * c + b2 * s + b3 * cc + b4 * sc
+m22 = c0 + c1 * c + c2 * s + c3 * cc + c4 * sc
+d11 = a1 * d_c + a2 * c + a3 * d_cc + a4 * d_sc
+d12 = b1 * d_c + b2 * c + b3 * d_cc + b4 * d_sc
+d22 = c1 * d_c + c2 * c + c3 * d_cc + c4 * d_sc
+k1 = cos(q1)
+s1 = sin(q1)
+kc = k1 * c
+ks = k1 * s
+sc1 = s1 * c
+ss = s1 * s
+gr1 = g10 + g11 * k1 + g12 * s1 + g13 * c + g14 * s + g15 * kc + g16 * ks + g17 * sc1
+gr1 += g18 * ss
+gr2 = g20 + g21 * k1 + g22 * s1 + g23 * c + g24 * s + g25 * kc + g26 * ks + g27 * sc1
+gr2 += g28 * ss
+"""
+_COEFFICIENTS = (
+    "a0, a1, a2, a3, a4, b0, b1, b2, b3, b4, c0, c1, c2, c3, c4, "
+    "g10, g11, g12, g13, g14, g15, g16, g17, g18, g20, g21, g22, g23, g24, g25, g26, g27, g28"
+)
 
+
+def _indented(text: str, spaces: int) -> str:
+    return "".join(" " * spaces + line + "\n" for line in text.splitlines())
+
+
+_SOURCE = f"""\
+def factory({_COEFFICIENTS}, cos, sin):
     def dyn(q1, q2, qd1, qd2):
-        c = cos(q2)
-        s = sin(q2)
-        cc = c * c
-        sc = s * c
-        # derivatives wrt q2: d(c) = -s, d(s) = c, d(cc) = -2 sc, d(sc) = cc - s s
-        d_c = -s
-        d_cc = -2.0 * sc
-        d_sc = cc - s * s
-        m11 = a0 + a1 * c + a2 * s + a3 * cc + a4 * sc
-        m12 = b0 + b1 * c + b2 * s + b3 * cc + b4 * sc
-        m22 = c0 + c1 * c + c2 * s + c3 * cc + c4 * sc
-        d11 = a1 * d_c + a2 * c + a3 * d_cc + a4 * d_sc
-        d12 = b1 * d_c + b2 * c + b3 * d_cc + b4 * d_sc
-        d22 = c1 * d_c + c2 * c + c3 * d_cc + c4 * d_sc
-        k1 = cos(q1)
-        s1 = sin(q1)
-        kc = k1 * c
-        ks = k1 * s
-        sc1 = s1 * c
-        ss = s1 * s
-        gr1 = g10 + g11 * k1 + g12 * s1 + g13 * c + g14 * s + g15 * kc + g16 * ks + g17 * sc1
-        gr1 += g18 * ss
-        gr2 = g20 + g21 * k1 + g22 * s1 + g23 * c + g24 * s + g25 * kc + g26 * ks + g27 * sc1
-        gr2 += g28 * ss
+{_indented(_TERMS, 8)}\
         b1_ = (d11 * qd1 + d12 * qd2) * qd2 + gr1
         b2_ = 0.5 * (d22 * qd2 * qd2 - d11 * qd1 * qd1) + gr2
         return m11, m12, m22, b1_, b2_
 
     def free_accel(e1, e2, c11, c12, ia1, ia2):
-        """``acc(q1, q2, qd1, qd2) -> (qdd1, qdd2)`` [rad/s^2] with both joints moving:
-        (M - diag(ia)) qdd = (e1 - c11 qd1, e2 - c12 qd2) - b, solved by Cramer's rule;
-        the expressions of ``dyn`` inlined (same operations, same results: one call per
-        RK4 stage instead of two). e [N m], c [N m s/rad], ia [kg m^2]."""
-
         def acc(q1, q2, qd1, qd2):
-            c = cos(q2)
-            s = sin(q2)
-            cc = c * c
-            sc = s * c
-            d_c = -s
-            d_cc = -2.0 * sc
-            d_sc = cc - s * s
-            m11 = a0 + a1 * c + a2 * s + a3 * cc + a4 * sc
-            m12 = b0 + b1 * c + b2 * s + b3 * cc + b4 * sc
-            m22 = c0 + c1 * c + c2 * s + c3 * cc + c4 * sc
-            d11 = a1 * d_c + a2 * c + a3 * d_cc + a4 * d_sc
-            d12 = b1 * d_c + b2 * c + b3 * d_cc + b4 * d_sc
-            d22 = c1 * d_c + c2 * c + c3 * d_cc + c4 * d_sc
-            k1 = cos(q1)
-            s1 = sin(q1)
-            kc = k1 * c
-            ks = k1 * s
-            sc1 = s1 * c
-            ss = s1 * s
-            gr1 = g10 + g11 * k1 + g12 * s1 + g13 * c + g14 * s + g15 * kc + g16 * ks + g17 * sc1
-            gr1 += g18 * ss
-            gr2 = g20 + g21 * k1 + g22 * s1 + g23 * c + g24 * s + g25 * kc + g26 * ks + g27 * sc1
-            gr2 += g28 * ss
+{_indented(_TERMS, 12)}\
             r1 = e1 - c11 * qd1 - ((d11 * qd1 + d12 * qd2) * qd2 + gr1)
             r2 = e2 - c12 * qd2 - (0.5 * (d22 * qd2 * qd2 - d11 * qd1 * qd1) + gr2)
             m11 -= ia1
@@ -134,8 +119,7 @@ def _make(cm, cg):
 
         return acc
 
-    def mass(q2):
-        """(m11, m12, m22) [kg m^2]: the first three of ``dyn`` (same expressions)."""
+    def mass(q2):  # (m11, m12, m22) [kg m^2]: the first three of dyn (same expressions)
         c, s = cos(q2), sin(q2)
         cc, sc = c * c, s * c
         m11 = a0 + a1 * c + a2 * s + a3 * cc + a4 * sc
@@ -143,6 +127,24 @@ def _make(cm, cg):
         m22 = c0 + c1 * c + c2 * s + c3 * cc + c4 * sc
         return m11, m12, m22
 
+    return dyn, free_accel, mass
+"""
+_NAMESPACE: dict = {}
+exec(compile(_SOURCE, "<guardid fast2r evaluators>", "exec"), _NAMESPACE)  # noqa: S102
+_FACTORY = _NAMESPACE["factory"]
+
+
+def _make(cm, cg):
+    """``dyn(q1, q2, qd1, qd2) -> (m11, m12, m22, b1, b2)`` for the fitted coefficients.
+
+    ``dyn.mass(q2)`` -> (m11, m12, m22) [kg m^2]. ``dyn.free_accel(e1, e2, c11, c12, ia1,
+    ia2)`` -> ``acc(q1, q2, qd1, qd2) -> (qdd1, qdd2)`` [rad/s^2] with both joints moving:
+    (M - diag(ia)) qdd = (e1 - c11 qd1, e2 - c12 qd2) - b solved by Cramer's rule, dyn's
+    terms inlined (one call per RK4 stage instead of two; same operations, same results).
+    e [N m], c [N m s/rad], ia [kg m^2]."""
+    coefficients = [x for row in cm for x in row.tolist()]
+    coefficients += [x for row in cg for x in row.tolist()]
+    dyn, free_accel, mass = _FACTORY(*coefficients, math.cos, math.sin)
     dyn.mass = mass
     dyn.free_accel = free_accel
     return dyn
