@@ -79,6 +79,37 @@ def test_simulated_loop_follows_the_captured_motion(quiet_log):
     assert err_counts[:20].max() < 5, err_counts[:20].max(axis=0)
 
 
+def test_rows_lost_after_the_first_do_not_move_the_simulated_start(quiet_log):
+    """A run starting mid-motion (row 200 on) whose next 4 rows are lost: the firmware
+    holds the first setpoint from the first row's counts (it once drove towards count 0
+    until the next logged setpoint: 110 counts off) and the PID's first output comes from
+    the period before the first row (a period 5 ticks later put the tilt 200+ counts off);
+    the run stays within 5 counts, as it does with every row."""
+    run = load_run(quiet_log)
+    keep = np.r_[200, 205 : len(run.ticks)]
+    t, q, cur, v = run.t[keep], run.q[keep], run.current[keep], run.voltage[keep]
+    start = start_state((t, q, cur), run.ticks[keep], v, COUNT_RAD / 2)
+    np.testing.assert_array_equal(start[2], run.voltage[200])
+    q_sim = simulate(GUARD, MODEL, TRUTH, run.ticks[keep], run.setpoint[keep], *start)
+    err_counts = np.abs(q_sim - q) / COUNT_RAD
+    assert err_counts.max() < 5, err_counts.max(axis=0)
+
+
+def test_a_non_finite_setpoint_is_one_line(quiet_log, tmp_path):
+    lines = quiet_log.read_text().splitlines(keepends=True)
+    names = lines[0].rstrip("\n").split(",")
+    k = next(i for i, x in enumerate(lines) if x[0].isdigit())  # first data row
+    cells = lines[k + 3].rstrip("\n").split(",")
+    cells[names.index("sp_tilt_rad")] = "nan"
+    lines[k + 3] = ",".join(cells) + "\n"
+    bad = tmp_path / "nan_sp.csv"
+    bad.write_text("".join(lines))
+    res = invoke("identify", bad, "--method", "iv")
+    assert res.exit_code != 0
+    assert_ok_or_one_line(res, "nan setpoint")
+    assert "sp_tilt_rad" in res.stderr and "not finite" in res.stderr
+
+
 def test_iv_with_the_regressor_as_instruments_is_least_squares():
     rng = np.random.default_rng(7)
     A = rng.normal(size=(50, 2, 3))

@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from guardid.errors import GuardidError
+
 MAX_ITER = 10  #: closed-loop simulations at most
 DAMPING = {"iv": 1.0, "didim": 0.5}
 """Fraction of the step taken before the next simulation [-]. DIDIM's undamped iterates
@@ -81,7 +83,13 @@ def iv_solve(A, y, Z, w):
     d = np.sqrt(np.sum(Aw * Aw, axis=0))
     d = np.where(d > 0, d, 1.0)  # column scaling: solve in well-scaled units
     G = Zw.T @ (Aw / d)
-    theta = np.linalg.solve(G, Zw.T @ yw) / d
+    try:
+        theta = np.linalg.solve(G, Zw.T @ yw) / d
+    except np.linalg.LinAlgError:
+        raise GuardidError(
+            "--method iv/didim: the simulated closed loop's regressor is singular (a column "
+            "the simulated motion never excites): use ls or wls on this log"
+        ) from None
     r = yw - Aw @ theta
     s2 = float(r @ r) / max(len(yw) - Aw.shape[1], 1)
     Ginv = np.linalg.inv(G) / d[:, None]  # (Z^T A)^-1 in the original units
@@ -118,4 +126,6 @@ def closed_loop_fit(method: str, A, y, theta0, regressor_of) -> ClosedLoopEstima
             theta = new
             break
         theta = theta + DAMPING[method] * (new - theta)
+    if not converged:  # the last solution, the point its covariance describes
+        theta = new
     return ClosedLoopEstimate(theta, cov, len(moves), converged, moves)

@@ -95,8 +95,14 @@ def regressor_builder(data: ClosedLoopRuns, description, model, free, rows, flag
 def start_state(run, ticks, voltage, half_count):
     """(q0 [rad], qd0 [rad/s], u0 [V] or None): the first row's position (the middle of its
     encoder count, ``half_count`` (n,) [rad]), the velocity of the first tick and the
-    voltage the log reports for the period after the first row."""
+    voltage the log reports for the period after the first row (the PID's output at the
+    first row; when the next row was lost, the period before the first row's instead: a
+    later period's is further off)."""
     t, q = np.asarray(run[0], dtype=float), np.asarray(run[1], dtype=float)
     qd0 = (q[1] - q[0]) / (t[1] - t[0])
-    u0 = None if voltage is None or np.size(voltage) == 0 else np.asarray(voltage)[1]
+    u0 = None
+    if voltage is not None and np.size(voltage) > 0:
+        next_tick = ticks is None or int(ticks[1]) - int(ticks[0]) == 1
+        # the row after was lost: the period before the first row is the closest output
+        u0 = np.asarray(voltage)[1 if next_tick else 0]
     return q[0] + half_count, qd0, u0

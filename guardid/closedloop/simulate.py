@@ -118,12 +118,14 @@ def simulate(description, model, theta, ticks, setpoint_rad, q0_rad, qd0, u0_v=N
     plant = Plant(plant_desc, model=BaseDynamics(model, theta), noise=False,
                   substeps=SUBSTEPS, q0=list(q0_rad), qd0=list(qd0))  # fmt: skip
     fw = FirmwareEmulator(description, plant)
+    counts0 = list(plant.counts())
+    fw.counts = list(counts0)  # the firmware has read the encoders at the first row
     fw.receive(Encoder().encode(M["SET_MODE"](ENUMS["mode"]["position"])))
     fw.take_output()
     fw.watchdog_ms = 1 << 62  # no host in the loop
     cpr = np.array(fw.cpr, dtype=float)
     sp = np.rint(np.asarray(setpoint_rad, dtype=float) * cpr / (2 * math.pi)).astype(np.int64)
-    counts0 = list(plant.counts())
+    fw.setpoint = sp[0].tolist()  # held until the next logged setpoint (lost rows between)
     u0 = np.zeros(len(cpr)) if u0_v is None else np.asarray(u0_v, dtype=float)
     for j, pid in enumerate(fw.pids):
         e0 = int(sp[0, j]) - int(counts0[j])

@@ -54,8 +54,9 @@ closed loop (``bench/bench_std_check.py``, 100 seeds: spread / std 0.84-1.11 on 
 default and the tracking excitation, truth within 3 std in >= 99.7 % of pairs), where LS's
 pooled noise level makes the pan parameters' std up to 1.35x too large and the tilt's up to
 1.35x too small (its two joints' residuals differ by a factor of several). IV and DIDIM
-are not in the list: they need a guardid log with setpoints, and IV's figures equal WLS's
-there."""
+are not in the list: they need a guardid log with setpoints and the robot's controller;
+IV meets the same bars there (its biases up to 0.2 std smaller on the tracking
+excitation), DIDIM's std is up to 1.4x too small on it."""
 
 
 def reference_method(results) -> str | None:
@@ -248,6 +249,8 @@ def identify(
         else:
             est = Gradient(eta=gradient_eta, dt=dt, theta0=nominal).fit(A, y)
         results[method] = _result(method, est, A, y, cond.t[cond.mask])
+        if method in ("iv", "didim"):  # the report's "(not converged)" and params' flag
+            results[method].converged = bool(est.converged)
         if method == "hopfield":
             results[method].settings = {
                 "beta": beta,
