@@ -18,6 +18,7 @@ the statistics are a few lines of numpy here, not guardid's.
 
     python bench/bench_bias_sources.py [--seeds 6] [--duration 60] [--method ls]
                                        [--excitations default,tracking] [--fixed-phase]
+                                       [--cutoff HZ]
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ import numpy as np
 
 import guardid.plant.plant as plant_module
 from guardid.cli import main as cli
+from guardid.conditioning.options import ConditioningOptions
 from guardid.dynamics import build_model
 from guardid.identify.pipeline import identify
 from guardid.identify.runs import load_run
@@ -79,6 +81,10 @@ def main() -> None:
     ap.add_argument("--method", default="ls", help="ls or wls")
     ap.add_argument("--excitations", default="default,tracking")
     ap.add_argument(
+        "--cutoff", type=float, default=None,
+        help="low-pass cut-off [Hz] (default: chosen from the measured log)",
+    )  # fmt: skip
+    ap.add_argument(
         "--fixed-phase",
         action="store_true",
         help="leave phase=1 out: every seed starts at the same encoder phase",
@@ -86,6 +92,7 @@ def main() -> None:
     a = ap.parse_args()
     desc = load_robot("guard")
     model = build_model(desc)
+    given = ConditioningOptions(cutoff_hz=a.cutoff) if a.cutoff else None
     truth = dict(zip(model.base.names, model.base.values(model.params), strict=True))
     m = a.method
     with tempfile.TemporaryDirectory() as tmp:
@@ -100,7 +107,7 @@ def main() -> None:
                                                          not a.fixed_phase)  # fmt: skip
                 hh = run.highest_harmonic_hz
                 ref = identify(run.t, run.q, run.current, desc, methods=(m,),
-                               highest_harmonic_hz=hh)  # fmt: skip
+                               highest_harmonic_hz=hh, conditioning=given)  # fmt: skip
                 tv = np.array([truth[n] for n in ref.names])
                 std = ref.results[m].std
                 for name, q, i in (("measured", run.q, run.current), ("true q", q_true,
