@@ -1,7 +1,7 @@
 """The simulated closed loop's regressor on the measured identification rows.
 
 The simulated positions of each run go through the measured run's conditioning
-(:func:`guardid.identify.rows._condition_run` with the resolved options: the same cut-off,
+(:func:`guardid.identify.rows.condition_run` with the resolved options: the same cut-off,
 filter, decimation and friction-column filter; no fallback), and the rows the measured
 run kept (its mask) are taken, so that Z lines up with the measured A row for row.
 """
@@ -14,7 +14,7 @@ import numpy as np
 
 from guardid.closedloop.simulate import check_simulable, simulate
 from guardid.errors import GuardidError
-from guardid.identify.rows import _condition_run
+from guardid.identify.rows import condition_run
 
 
 @dataclass
@@ -76,7 +76,7 @@ def regressor_builder(data: ClosedLoopRuns, description, model, free, rows, flag
                                              strict=True):  # fmt: skip
             q_sim = simulate(description, model, theta, tk, sp, q0, qd0, u0)
             t, _, effort, *_ = run
-            _, A_all, *_ = _condition_run(
+            _, A_all, *_ = condition_run(
                 (t, q_sim, effort), description, used, used.cutoff_hz, *flags, model, free,
                 used.friction_filter, fallback=False,
             )  # fmt: skip

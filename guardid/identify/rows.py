@@ -221,7 +221,7 @@ def identification_rows(
     )
 
 
-def _condition_run(run, description, options, cutoff_hz, in_current_units, effort_is_torque,
+def condition_run(run, description, options, cutoff_hz, in_current_units, effort_is_torque,
                    model, free, friction_filter=False, fallback=True):  # fmt: skip
     """One run (t, q, effort[, qd]) conditioned under ``options`` at ``cutoff_hz`` [Hz]:
     (conditioned signals, A (M, n, b'), y (M, n), y_raw (M, n), A_plain (M, n, b')) on every
@@ -339,7 +339,7 @@ def cutoff_scores(runs, description, options, cands, blocks, in_current_units, e
     flags = (in_current_units, effort_is_torque, model, free)
     middle = cands[len(cands) // 2]  # evaluation rows: those usable under the middle one
     # only their masks are kept (a long log's conditioned signals need not stay in memory)
-    ref = [_condition_run(r, description, common, middle, *flags)[0].mask for r in runs]
+    ref = [condition_run(r, description, common, middle, *flags)[0].mask for r in runs]
     variants = [options.friction_filter]
     if options.friction_filter is None:
         variants = [False, True] if friction_columns(model, free) else [False]
@@ -352,7 +352,7 @@ def cutoff_scores(runs, description, options, cands, blocks, in_current_units, e
         for ff in variants:
             parts = []  # (block id, A_fit, y_fit, A_eval, y_raw_eval)
             for r_i, (run, rc) in enumerate(zip(runs, ref, strict=True)):
-                c, A, y, raw, plain = _condition_run(run, description, common, fc, *flags, ff,
+                c, A, y, raw, plain = condition_run(run, description, common, fc, *flags, ff,
                                                      fallback=False)  # fmt: skip
                 n, fit = len(c.t), c.mask
                 del c  # only its mask is needed here
@@ -456,7 +456,7 @@ def stacked_rows(
             used = replace(used, parallel_filter_hz=parallel.hz, decimate=parallel.decimate)
     conds, As, ys = [], [], []
     for run in runs:
-        c, A, y, _, _ = _condition_run(run, description, used, cutoff, in_current_units,
+        c, A, y, _, _ = condition_run(run, description, used, cutoff, in_current_units,
                                        effort_is_torque, model, free, ff)  # fmt: skip
         if used.parallel_filter_hz:
             c, A, y = _parallel(c, A, y, free, used.parallel_filter_hz, used.decimate)
@@ -491,13 +491,13 @@ def _auto_parallel(runs, description, used, in_current_units, effort_is_torque, 
         return ParallelChoice(None, f"{off_msg} (sign friction; the filter would mix them "
                               "back in)")  # fmt: skip
     flags = (in_current_units, effort_is_torque, model, free, used.friction_filter)
-    fine = [_condition_run(r, description, replace(used, decimate=1), used.cutoff_hz, *flags)
+    fine = [condition_run(r, description, replace(used, decimate=1), used.cutoff_hz, *flags)
             for r in runs]  # fmt: skip
     inside = sum(c.dropped.get(k, 0) for c, *_ in fine for k in c.dropped if "velocity" in k)
     if inside:
         return ParallelChoice(None, f"{off_msg} (the filter would mix them back in)")
 
-    off = [_condition_run(r, description, used, used.cutoff_hz, *flags) for r in runs]
+    off = [condition_run(r, description, used, used.cutoff_hz, *flags) for r in runs]
     blocks = max(1, -(-MIN_BLOCKS // len(runs)))
 
     def block_of(t, c):
