@@ -243,3 +243,17 @@ def test_cross_validation_runs_the_closed_loop_methods(quiet_log, tmp_path):
     mean = next(line for line in res.output.splitlines() if line.startswith("mean"))
     wls, iv = (float(x.rstrip("%")) for x in mean.split()[1:3])
     assert iv == pytest.approx(wls, rel=0.10)
+
+
+def test_a_closed_loop_fit_that_does_not_settle_is_marked_in_the_result(quiet_log, monkeypatch):
+    """Tolerance 0: the iteration never settles; identify's result says so (the report's
+    "(not converged)" and the params file's flag read it), not only a warning line."""
+    import guardid.closedloop.fit as fit
+
+    monkeypatch.setattr(fit, "TOL_STD", {"iv": 0.0, "didim": 0.0})
+    run = load_run(quiet_log)
+    result = identify(run.t, run.q, run.current, GUARD, methods=("wls", "iv"),
+                      voltage_v=run.voltage, ticks=run.ticks, setpoints=run.setpoint)  # fmt: skip
+    assert result.results["wls"].converged
+    assert not result.results["iv"].converged
+    assert any("iv" in w.lower() and str(MAX_ITER) in w for w in result.warnings)
