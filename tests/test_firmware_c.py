@@ -15,7 +15,6 @@ import re
 import subprocess
 import sys
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -25,6 +24,7 @@ from test_hil import N_TICKS, Recorder, run
 
 from guardid.firmware import FirmwareEmulator, FixedPid, pid_gains_q16
 from guardid.firmware.c_core import find_compiler
+from guardid.firmware.emulator import pwm_mv
 from guardid.link import Session, open_port
 from guardid.plant import Plant
 from guardid.protocol import ENUMS, MESSAGES, Encoder, FrameParser
@@ -134,10 +134,9 @@ def test_pid_step_equals_fixed_pid_bit_for_bit():
 
 def test_pwm_quantisation_equals_the_emulator():
     for bits, supply in ((8, 12000), (10, 12000), (1, 5000), (16, 32767), (8, 1)):
-        emu = SimpleNamespace(pwm_levels=[(1 << bits) - 1], supply_mv=[supply])
         step = max(1, supply // 3000)
         for mv in range(-supply, supply + 1, step):
-            assert c_pwm(mv, supply, bits) == FirmwareEmulator._pwm(emu, 0, mv), (bits, mv)
+            assert c_pwm(mv, supply, bits) == pwm_mv(mv, (1 << bits) - 1, supply), (bits, mv)
 
 
 # ---------------------------------------------------------------------- closed loop

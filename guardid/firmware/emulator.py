@@ -61,6 +61,15 @@ TICK_MASK = 0xFFFFFFFF  #: the tick is a u32 counter
 IDLE, POSITION, VOLTAGE = MODE["idle"], MODE["position"], MODE["voltage"]
 
 
+def pwm_mv(mv: int, levels: int, supply_mv: int) -> int:
+    """``mv`` [mV] quantised to a sign-magnitude PWM duty of ``levels`` steps of the
+    ``supply_mv`` [mV] (rounded), returned as the duty's voltage [mV]; integer math, as the
+    C core's ``gf_sil_pwm``."""
+    duty = (abs(mv) * levels + supply_mv // 2) // supply_mv
+    duty_mv = (duty * supply_mv + levels // 2) // levels
+    return duty_mv if mv >= 0 else -duty_mv
+
+
 def tick_diff(a: int, b: int) -> int:
     """Serial tick arithmetic (README timing rules): ``(int32_t)(a - b)``."""
     return ((a - b + 0x80000000) & TICK_MASK) - 0x80000000
@@ -116,14 +125,8 @@ class FirmwareEmulator:
         self.pwm_levels = [(1 << j.drive.pwm_bits) - 1 for j in joints]
         self.limits = [self._count_limits(j, c) for j, c in zip(joints, self.cpr, strict=True)]
         self.pids = [FixedPid(s) for s in self.supply_mv]
-        # per joint, for the tick: (count limits or None, PWM levels, levels // 2,
-        # supply [mV], supply // 2), as _pwm uses them
-        self._per_joint = [
-            (lim, levels, levels // 2, supply, supply // 2)
-            for lim, levels, supply in zip(
-                self.limits, self.pwm_levels, self.supply_mv, strict=True
-            )
-        ]
+        # per joint, for the tick: (count limits or None, PWM levels, supply [mV])
+        self._per_joint = list(zip(self.limits, self.pwm_levels, self.supply_mv, strict=True))
         for pid, joint, cpr in zip(self.pids, joints, self.cpr, strict=True):
             if joint.pid is not None:
                 gains = [int(round(g * 1e6)) for g in (joint.pid.kp, joint.pid.ki, joint.pid.kd)]
@@ -354,18 +357,14 @@ class FirmwareEmulator:
         else:
             out = [0] * self.n
         applied = []
-        for j, (lim, levels, half_levels, supply, half_supply) in enumerate(self._per_joint):
+        for j, (lim, levels, supply) in enumerate(self._per_joint):
             mv = out[j]
             if lim is not None and (
                 (mv > 0 and counts[j] >= lim[1]) or (mv < 0 and counts[j] <= lim[0])
             ):
                 mv = 0
                 status |= LIMIT_BITS[j]
-            # _pwm(j, mv), inlined: the PWM duty's voltage [mV] (integer math)
-            duty_mv = (
-                ((abs(mv) * levels + half_supply) // supply) * supply + half_levels
-            ) // levels
-            applied.append(duty_mv if mv >= 0 else -duty_mv)
+            applied.append(pwm_mv(mv, levels, supply))
         self.applied_mv = applied
         if self.watchdog_tripped:
             status |= WATCHDOG_BIT
@@ -395,13 +394,6 @@ class FirmwareEmulator:
         the lean ``step_sensors``."""
         sample = self.plant.step(volts)
         return [int(c) for c in sample.counts], sample.voltage, sample.current
-
-    def _pwm(self, j: int, mv: int) -> int:
-        """Quantise ``mv`` to the PWM duty; return the duty's voltage [mV] (integer math)."""
-        levels, supply = self.pwm_levels[j], self.supply_mv[j]
-        mag = (abs(mv) * levels + supply // 2) // supply
-        duty_mv = (mag * supply + levels // 2) // levels
-        return duty_mv if mv >= 0 else -duty_mv
 
     def take_output(self) -> bytes:
         """Bytes emitted since the previous call."""
