@@ -36,7 +36,7 @@ import numpy as np
 from guardid.plant.fast2r import fit_two_revolute, generic_two
 from guardid.plant.joints import PlantError, joint_constants
 from guardid.plant.payload import payload_params
-from guardid.plant.sensors import adc_step
+from guardid.plant.sensors import adc_quantise, pwm_quantise
 
 DEFAULT_SUBSTEPS = 1
 """RK4 sub-steps per tick. One step per 15 ms tick keeps q within ~1e-7 rad of a tight
@@ -47,15 +47,6 @@ instead of every tick (at most one tick late with 1). 1 keeps the whole simulate
 above 200x real time through the protocol stack (bench/bench_hil.py)."""
 
 _MAX_EVENTS = 8
-
-
-def _adc_terms(sensor) -> tuple | None:
-    """(LSB, 2**(bits-1), noise sigma) of a (range, bits, noise) sensor, as
-    :func:`adc_quantise` works them out, or None."""
-    if sensor is None:
-        return None
-    full_range, bits, sigma = sensor
-    return adc_step(full_range, bits), 1 << (bits - 1), sigma
 
 
 class SensorSample(NamedTuple):
@@ -150,11 +141,13 @@ class Plant:
         self._u = [0.0, 0.0]
         self._per_rad = [jc.counts_per_rad for jc in self.joints]
         self._stops = [(jc.fc, jc.lo, jc.hi) for jc in self.joints]  # friction, limits
-        self._sensing = [(jc.driven, jc.r, jc.tau_e, jc.ke, _adc_terms(jc.voltage_sensor),
-                          _adc_terms(jc.current_sensor)) for jc in self.joints]  # fmt: skip
-        # per joint: (driven, kt, r, open circuit, supply [V], PWM levels 2**bits - 1)
-        self._drive = [(jc.driven, jc.kt, jc.r, self.open_circuit, jc.supply,
-                        (1 << jc.pwm_bits) - 1) for jc in self.joints]  # fmt: skip
+        # per joint: (driven, r, tau_e, ke, voltage and current sensors (range, bits, sigma)
+        # or None)
+        self._sensing = [(jc.driven, jc.r, jc.tau_e, jc.ke, jc.voltage_sensor,
+                          jc.current_sensor) for jc in self.joints]  # fmt: skip
+        # per joint: (driven, kt, r, open circuit, supply [V], PWM bits)
+        self._drive = [(jc.driven, jc.kt, jc.r, self.open_circuit, jc.supply, jc.pwm_bits)
+                       for jc in self.joints]  # fmt: skip
         self._c1 = None
         self._configure([0.0, 0.0])
 
@@ -409,13 +402,8 @@ class Plant:
         t0 = self._tick * T
         applied = []
         last_sign = self._last_sign
-        for j, ((driven, _, _, _, supply, levels), x) in enumerate(
-            zip(self._drive, u, strict=True)
-        ):
-            x = float(x)
-            if driven:  # pwm_quantise(x, supply, bits), inlined (same operations)
-                duty = math.floor(min(abs(x), supply) / supply * levels + 0.5) * supply / levels
-                x = -duty if x < 0.0 else duty
+        for j, ((driven, _, _, _, supply, bits), x) in enumerate(zip(self._drive, u, strict=True)):
+            x = pwm_quantise(float(x), supply, bits) if driven else float(x)
             applied.append(x)
             if x != 0.0:
                 last_sign[j] = 1.0 if x > 0 else -1.0
@@ -515,15 +503,12 @@ class Plant:
                 vm = v
             v_true.append(vm)
             i_true.append(im)
-            # adc_quantise(x + noise, range, bits), inlined: (LSB, 2**(bits-1), sigma)
             if vsense is not None:
-                lsb, half, sigma = vsense
-                code = math.floor((vm + gauss(0.0, sigma) if noise else vm + 0.0) / lsb + 0.5)
-                vm = (half - 1 if code >= half else (-half if code < -half else code)) * lsb
+                full_range, bits, sigma = vsense
+                vm = adc_quantise(vm + (gauss(0.0, sigma) if noise else 0.0), full_range, bits)
             if isense is not None:
-                lsb, half, sigma = isense
-                code = math.floor((im + gauss(0.0, sigma) if noise else im + 0.0) / lsb + 0.5)
-                im = (half - 1 if code >= half else (-half if code < -half else code)) * lsb
+                full_range, bits, sigma = isense
+                im = adc_quantise(im + (gauss(0.0, sigma) if noise else 0.0), full_range, bits)
             v_meas.append(vm)
             i_meas.append(im)
         if self._single:
