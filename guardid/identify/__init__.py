@@ -5,37 +5,37 @@ In five lines (docs/CONTRACTS.md, README "Python API")::
     from guardid.identify import IdentifyOptions, identify, load_run
     from guardid.robot import load_robot
 
-    result = identify([load_run("run.csv")], load_robot("guard"), IdentifyOptions(methods=("wls",)))
-    print(dict(zip(result.names, result.results["wls"].theta)))
+    r = identify([load_run("run.csv")], load_robot("guard"), IdentifyOptions(methods=("wls",)))
+    for name, value, std in zip(r.names, r.results["wls"].theta, r.results["wls"].std):
+        print(f"{name} {value:.4g} +- {std:.2g}")  # base parameters [SI] and their std
 """
 
-from guardid.identify.electrical import MotorEstimate, identify_motor
-from guardid.identify.methods import Method, MethodFit, method_names, register
-from guardid.identify.pipeline import (
-    HopfieldSettings,
-    Identification,
-    IdentifyOptions,
-    MethodResult,
-    identification_rows,
-    identify,
-    run_from_arrays,
-)
-from guardid.identify.runs import Run, load_run
+from importlib import import_module
 
-__all__ = [
-    "HopfieldSettings",
-    "Identification",
-    "IdentifyOptions",
-    "Method",
-    "MethodFit",
-    "MethodResult",
-    "MotorEstimate",
-    "Run",
-    "identification_rows",
-    "identify",
-    "identify_motor",
-    "load_run",
-    "method_names",
-    "register",
-    "run_from_arrays",
-]
+_WHERE = {
+    "MotorEstimate": "electrical",
+    "identify_motor": "electrical",
+    "Method": "methods",
+    "MethodFit": "methods",
+    "method_names": "methods",
+    "register": "methods",
+    "HopfieldSettings": "pipeline",
+    "Identification": "pipeline",
+    "IdentifyOptions": "pipeline",
+    "MethodResult": "pipeline",
+    "identification_rows": "pipeline",
+    "identify": "pipeline",
+    "run_from_arrays": "pipeline",
+    "Run": "runs",
+    "load_run": "runs",
+}
+"""Where each name lives: imported on first use, so that ``guardid identify --help`` (which
+lists the registered methods) does not load the numerical stack."""
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name):
+    if name in _WHERE:
+        return getattr(import_module(f"guardid.identify.{_WHERE[name]}"), name)
+    raise AttributeError(f"module 'guardid.identify' has no attribute {name!r}")

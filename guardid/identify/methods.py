@@ -22,8 +22,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from guardid.errors import GuardidError
-from guardid.estimators import MLP, RLS, Gradient, Hopfield, LeastSquares, WeightedLeastSquares
-from guardid.identify.trust import BoundedLeastSquares, lower_bounds
+
+# the estimators are imported where they are fitted: listing the methods (``--help``) needs
+# none of them
 
 
 @dataclass(frozen=True)
@@ -47,7 +48,7 @@ class FitRows:
     names: tuple[str, ...]
     nominal: np.ndarray
     dt: float
-    ls: LeastSquares
+    ls: object  # guardid.estimators.LeastSquares, fitted
     runs: list
     description: object
     model: object
@@ -172,6 +173,8 @@ class WLS(Method):
     summary = "least squares weighted per joint by its residual's std"
 
     def fit(self, rows):
+        from guardid.estimators import WeightedLeastSquares
+
         return MethodFit.of(WeightedLeastSquares().fit(rows.A, rows.y))
 
 
@@ -180,6 +183,8 @@ class BLS(Method):
     summary = "bounded: friction and rotor inertia >= 0"
 
     def fit(self, rows):
+        from guardid.identify.trust import BoundedLeastSquares, lower_bounds
+
         return MethodFit.of(BoundedLeastSquares(lower_bounds(rows.names)).fit(rows.A, rows.y))
 
 
@@ -188,6 +193,8 @@ class RLSMethod(Method):
     summary = "recursive least squares, forgetting factor --lam"
 
     def fit(self, rows):
+        from guardid.estimators import RLS
+
         est = RLS(lam=rows.options.rls_lambda, p0=rls_p0(rows.A)).fit(rows.A, rows.y)
         return MethodFit.of(est)
 
@@ -220,6 +227,8 @@ class GradientMethod(Method):
     summary = "gradient descent from the nominal values, gain --eta"
 
     def fit(self, rows):
+        from guardid.estimators import Gradient
+
         eta = rows.options.gradient_eta
         return MethodFit.of(Gradient(eta=eta, dt=rows.dt, theta0=rows.nominal).fit(rows.A, rows.y))
 
@@ -229,6 +238,8 @@ class MLPMethod(Method):
     summary = "seed 001's network on (q, q', q'')"
 
     def fit(self, rows):
+        from guardid.estimators import MLP
+
         c = rows.rows.cond
         m = c.mask
         return MethodFit.of(MLP().fit(rows.A, rows.y, X=np.hstack([c.q[m], c.qd[m], c.qdd[m]])))
@@ -273,13 +284,16 @@ class DIDIM(_ClosedLoop):
 # -- helpers ------------------------------------------------------------------------------
 
 
-def run_hopfield(A, y, nominal, beta: float, dt: float, passes: int = 1) -> Hopfield:
+def run_hopfield(A, y, nominal, beta: float, dt: float, passes: int = 1):
     """Hopfield estimator from ``nominal`` (b,) in the box nominal +- :func:`hopfield_half_widths`.
 
     ``passes`` > 1 runs the log again from where the previous pass ended (same box, same
     beta [unit of y^2 times s] and sample period dt [s]); ``history_`` then spans all
-    passes (sample counts continue across passes).
+    passes (sample counts continue across passes). Returns the fitted
+    :class:`~guardid.estimators.Hopfield`.
     """
+    from guardid.estimators import Hopfield
+
     nominal = np.asarray(nominal, dtype=float)
     half = hopfield_half_widths(nominal)
     bounds = (nominal - half, nominal + half)

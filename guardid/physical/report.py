@@ -16,9 +16,10 @@ METHOD = "consistent"
 def add_consistent(result, runs, description, effort_is_torque=False):
     """Fit the consistent model on ``result``'s rows and add it as ``results['consistent']``.
 
-    ``runs``: [(t [s], q [rad], effort)] as given to :func:`guardid.identify.identify`, which
-    made ``result``: conditioned under ``result.conditioning`` (the options identify used,
-    cut-off resolved). Returns the :class:`ConsistentFit`.
+    ``runs``: [(t [s], q [rad], effort)] of the runs given to
+    :func:`guardid.identify.identify`, which made ``result``: conditioned under
+    ``result.conditioning`` (the options identify used, cut-off resolved). Returns the
+    :class:`ConsistentFit`.
     """
     if result.torque_unit != "N m":
         raise GuardidError(
