@@ -97,8 +97,7 @@ def tracking(args, tmp: Path) -> None:
     r_avr = np.array(results["avr"][0].rms_tracking_error_rad)
     print(f"tracking rms avr/py - 1: {np.round(100 * (r_avr / r_py - 1), 2)} % (limit 10 %)")
     run = load_run(results["avr"][1])
-    ident = identify(run.t, run.q, run.current, guard, voltage_v=run.voltage, ticks=run.ticks,
-                     highest_harmonic_hz=0.6)  # fmt: skip
+    ident = identify([run], guard)  # the header's highest harmonic: 0.2 Hz x 3
     model = build_model(guard)
     truth = dict(zip(model.base.names, model.base.values(model.params), strict=True))
     for method in ("ls", "wls"):

@@ -45,18 +45,15 @@ def capture_log(traj: Path, seconds: float, url: str, log: Path) -> dict:
 
 
 def identify_log(log: Path):
-    from guardid.commands.identify import _highest_harmonic, _load_all
-    from guardid.identify import identify
+    from guardid.commands.identify import _load_all
+    from guardid.identify import IdentifyOptions, identify
 
     (runs, description) = _load_all(
         [str(log)],
         None,
         {"columns": (), "sample_period": None, "mat_var": None, "mat_columns": None},
     )
-    run = runs[0]
-    return identify(run.t, run.q, run.current, description, methods=METHODS,
-                    voltage_v=run.voltage, ticks=run.ticks,
-                    highest_harmonic_hz=_highest_harmonic(str(log), run))  # fmt: skip
+    return identify(runs, description, IdentifyOptions(methods=METHODS))
 
 
 def main() -> None:

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +34,7 @@ import guardid.plant.plant as plant_module
 from guardid.cli import main as cli
 from guardid.conditioning.options import ConditioningOptions
 from guardid.dynamics import build_model
-from guardid.identify.pipeline import identify
+from guardid.identify.pipeline import IdentifyOptions, identify
 from guardid.identify.runs import load_run
 from guardid.robot import load_robot
 
@@ -105,17 +106,16 @@ def main() -> None:
                 run, q_true, i_true = capture_with_truth(traj, seed, a.duration,
                                                          work / f"{exc}_{seed}.csv",
                                                          not a.fixed_phase)  # fmt: skip
-                hh = run.highest_harmonic_hz
-                ref = identify(run.t, run.q, run.current, desc, methods=(m,),
-                               highest_harmonic_hz=hh, conditioning=given)  # fmt: skip
+                ref = identify([run], desc, IdentifyOptions(methods=(m,), conditioning=given))
                 tv = np.array([truth[n] for n in ref.names])
                 std = ref.results[m].std
                 for name, q, i in (("measured", run.q, run.current), ("true q", q_true,
                                    run.current), ("true i", run.q, i_true),
                                    ("both", q_true, i_true)):  # fmt: skip
                     r = ref if name == "measured" else identify(
-                        run.t, q, i, desc, methods=(m,), conditioning=ref.conditioning,
-                        highest_harmonic_hz=hh)  # fmt: skip
+                        [replace(run, q=q, current=i)], desc,
+                        IdentifyOptions(methods=(m,), conditioning=ref.conditioning),
+                    )  # fmt: skip
                     z.setdefault(name, []).append((r.results[m].theta - tv) / std)
                 print(f"  {exc} seed {seed} done", flush=True)
             print(f"\n{exc} excitation, {m.upper()}, {a.seeds} seeds: mean (rms) over seeds of"

@@ -42,7 +42,6 @@ CLI_READ_SNIPPET = (  # the reads of guardid identify: the run, the header's har
     "import importlib, sys, time; I = importlib.import_module('guardid.commands.identify'); "
     "from guardid.online.offline import log_highest_harmonic; s = time.process_time(); "
     "run, d = I._load(sys.argv[1], None, (), None, None, None); "
-    "I._highest_harmonic(sys.argv[1], run); "
     "hasattr(run, 'highest_harmonic_hz') or log_highest_harmonic(sys.argv[1]); "
     "print(time.process_time() - s, len(run.t))"
 )

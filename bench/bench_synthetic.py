@@ -4,9 +4,9 @@ Synthetic logs of the DFKI double pendulum from its closed-form model
 (``tests/synthetic.py``: sums of six sines per joint, log-spaced in the band, a 15-bit
 encoder's quantisation on the positions, 5 mN m of torque noise) at each case's sample
 rate and excitation band, over ``--seeds`` seeds. guardid identifies each log with
-``identify(..., methods=("ls",), effort_is_torque=True)`` and nothing else set. Everything
-below is computed here with numpy from guardid's estimate and reported std and the
-closed-form truth, not by guardid's metrics:
+``identify([run_from_arrays(t, q, tau, torque=True)], desc, IdentifyOptions(("ls",)))``,
+nothing else set. Everything below is computed here with numpy from guardid's estimate
+and reported std and the closed-form truth, not by guardid's metrics:
 
 * per parameter: median and worst |relative error| over the seeds; the share of seeds
   within 2 % of the truth and the share with the truth within 3 reported std, among the
@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from synthetic import NAMES, V_SCALE, log, motion, regressor, truth  # noqa: E402
 
-from guardid.identify import identify  # noqa: E402
+from guardid.identify import IdentifyOptions, identify, run_from_arrays  # noqa: E402
 from guardid.robot import load_robot  # noqa: E402
 from guardid.robot.loader import parse_robot  # noqa: E402
 
@@ -62,7 +62,7 @@ def run_case(desc, fs, lo, hi, seeds):
     err, rel_std, z, orc, chosen = [], [], [], [], []
     for seed in seeds:
         t, q, tau = log(fs, lo, hi, seed)
-        r = identify(t, q, tau, desc, methods=("ls",), effort_is_torque=True)
+        r = identify([run_from_arrays(t, q, tau, torque=True)], desc, IdentifyOptions(("ls",)))
         if tuple(r.names) != NAMES:
             raise SystemExit(f"unexpected parameters {r.names}")
         theta, std = r.results["ls"].theta, r.results["ls"].std

@@ -17,7 +17,7 @@ from guardid.closedloop.fit import MAX_ITER, closed_loop_fit, iv_solve, joint_we
 from guardid.closedloop.rows import start_state
 from guardid.closedloop.simulate import BaseDynamics, simulate
 from guardid.dynamics import build_model
-from guardid.identify import identify
+from guardid.identify import IdentifyOptions, identify
 from guardid.identify.pipeline import identified_names
 from guardid.identify.runs import load_run
 from guardid.robot import load_robot
@@ -165,9 +165,7 @@ def test_an_iteration_that_does_not_settle_says_so():
 def closed_loop_result(noisy_log):
     run = load_run(noisy_log)
     with one_blas_thread():
-        return identify(run.t, run.q, run.current, GUARD, methods=("wls", "iv", "didim"),
-                        voltage_v=run.voltage, ticks=run.ticks, setpoints=run.setpoint,
-                        highest_harmonic_hz=run.highest_harmonic_hz)  # fmt: skip
+        return identify([run], GUARD, IdentifyOptions(methods=("wls", "iv", "didim")))
 
 
 @pytest.mark.parametrize("method", ["iv", "didim"])
@@ -222,13 +220,9 @@ def test_several_runs_stack_their_simulations(quiet_log):
     from guardid.conditioning.options import ConditioningOptions
 
     run = load_run(quiet_log)
-    opts = ConditioningOptions(cutoff_hz=4.0)
-    args = (run.t, run.q, run.current, run.voltage, run.ticks, run.setpoint)
-    one = identify(*args[:3], GUARD, methods=("iv",), conditioning=opts, voltage_v=args[3],
-                   ticks=args[4], setpoints=args[5]).results["iv"]  # fmt: skip
-    two = identify(*[[a, a] for a in args[:3]], GUARD, methods=("iv",), conditioning=opts,
-                   voltage_v=[args[3]] * 2, ticks=[args[4]] * 2,
-                   setpoints=[args[5]] * 2).results["iv"]  # fmt: skip
+    opts = IdentifyOptions(methods=("iv",), conditioning=ConditioningOptions(cutoff_hz=4.0))
+    one = identify([run], GUARD, opts).results["iv"]
+    two = identify([run, run], GUARD, opts).results["iv"]
     np.testing.assert_allclose(two.theta, one.theta, atol=0.05 * one.std.min())
     np.testing.assert_allclose(two.std * math.sqrt(2), one.std, rtol=0.02)
 
@@ -252,8 +246,7 @@ def test_a_closed_loop_fit_that_does_not_settle_is_marked_in_the_result(quiet_lo
 
     monkeypatch.setattr(fit, "TOL_STD", {"iv": 0.0, "didim": 0.0})
     run = load_run(quiet_log)
-    result = identify(run.t, run.q, run.current, GUARD, methods=("wls", "iv"),
-                      voltage_v=run.voltage, ticks=run.ticks, setpoints=run.setpoint)  # fmt: skip
+    result = identify([run], GUARD, IdentifyOptions(methods=("wls", "iv")))
     assert result.results["wls"].converged
     assert not result.results["iv"].converged
     assert any("iv" in w.lower() and str(MAX_ITER) in w for w in result.warnings)

@@ -532,7 +532,7 @@ class Sines:
 
 def _capture_and_identify(tmp_path, firmware: str):
     from guardid.capture import capture
-    from guardid.identify import identify
+    from guardid.identify import IdentifyOptions, identify
     from guardid.identify.runs import load_run
 
     port = open_port(f"sim://guard?seed=12&firmware={firmware}")
@@ -545,8 +545,7 @@ def _capture_and_identify(tmp_path, firmware: str):
         port.close()
     assert result.ended == "complete"
     r = load_run(log)
-    ident = identify(r.t, r.q, r.current, GUARD, methods=("ls", "wls", "rls"),
-                     voltage_v=r.voltage, ticks=r.ticks)  # fmt: skip
+    ident = identify([r], GUARD, IdentifyOptions(methods=("ls", "wls", "rls")))
     return r, ident
 
 

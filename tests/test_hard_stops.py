@@ -19,7 +19,7 @@ import guardid.plant.plant as plant_module
 from guardid.cli import main as cli
 from guardid.conditioning.stiction import at_position_limit, guard_periods
 from guardid.dynamics import build_model
-from guardid.identify import identify
+from guardid.identify import IdentifyOptions, identify, run_from_arrays
 from guardid.identify.runs import load_run
 from guardid.robot import load_robot
 from guardid.robot.loader import shipped_path
@@ -93,8 +93,7 @@ def no_coulomb_run(tmp_path_factory):
 def test_the_tilt_meets_its_stop_and_those_rows_are_dropped(no_coulomb_run):
     run, q_true, _, desc = no_coulomb_run
     assert np.degrees(q_true[:, 1].min()) <= -10.0 + 1e-6  # resting on the stop
-    result = identify(run.t, run.q, run.current, desc, methods=("ls",),
-                      highest_harmonic_hz=run.highest_harmonic_hz)  # fmt: skip
+    result = identify([run], desc, IdentifyOptions(methods=("ls",)))
     assert "at or next to a hard stop" in result.rows_summary
     assert any("position limit (hard stop)" in n for n in result.notes)
 
@@ -102,13 +101,13 @@ def test_the_tilt_meets_its_stop_and_those_rows_are_dropped(no_coulomb_run):
 def test_noise_free_signals_give_the_truth_despite_the_stop(no_coulomb_run):
     run, q_true, i_true, desc = no_coulomb_run
     model = build_model(desc)
-    measured = identify(run.t, run.q, run.current, desc, methods=("wls",),
-                        highest_harmonic_hz=run.highest_harmonic_hz)  # fmt: skip
+    measured = identify([run], desc, IdentifyOptions(methods=("wls",)))
     values = dict(zip(model.base.names, model.base.values(model.params), strict=True))
     truth = np.array([values[n] for n in measured.names])
-    clean = identify(run.t, q_true, i_true, desc, methods=("wls",),
-                     conditioning=measured.conditioning,
-                     highest_harmonic_hz=run.highest_harmonic_hz)  # fmt: skip
+    clean = identify(
+        [run_from_arrays(run.t, q_true, i_true, highest_harmonic_hz=run.highest_harmonic_hz)],
+        desc, IdentifyOptions(methods=("wls",), conditioning=measured.conditioning),
+    )  # fmt: skip
     z = (clean.results["wls"].theta - truth) / measured.results["wls"].std
     worst = dict(zip(measured.names, np.round(z, 2), strict=True))
     assert np.all(np.abs(z) < 0.3), worst

@@ -11,7 +11,7 @@ from synthetic import NAMES, V_SCALE, log, motion, regressor, torque, truth
 from guardid.cli import main
 from guardid.conditioning.options import ConditioningOptions
 from guardid.errors import ConfigError
-from guardid.identify import identify
+from guardid.identify import IdentifyOptions, identify, run_from_arrays
 from guardid.identify.cutoff import choose_parallel_filter, parallel_candidates
 from guardid.identify.rows import covariance_log_volume
 from guardid.robot import load_robot
@@ -39,6 +39,7 @@ CASES = [(100, 0.2, 2.0), (500, 0.5, 5.0), (500, 1.0, 10.0), (1000, 0.2, 2.0),
 # (Fv2 -2.40 %, 2.3 std; its rel. std 1.0 %) and 500 Hz 1-10 Hz seed 10 (MX2R +0.08 % at
 # 3.0 std) miss.
 SEEDS = (1, 2)
+LS = IdentifyOptions(methods=("ls",))
 
 
 _FITS: dict = {}
@@ -49,7 +50,7 @@ def _fit(robot, fs, lo, hi, seed=1):
     key = (id(robot), fs, lo, hi, seed)
     if key not in _FITS:
         t, q, tau = log(fs, lo, hi, seed)
-        r = identify(t, q, tau, robot, methods=("ls",), effort_is_torque=True)
+        r = identify([run_from_arrays(t, q, tau, torque=True)], robot, LS)
         _FITS[key] = (r, r.results["ls"], np.array([truth()[n] for n in r.names]))
     return _FITS[key]
 
@@ -115,8 +116,8 @@ def test_parallel_filter_is_exact_on_noise_free_data(robot):
     t = np.arange(0.0, 20.0, 0.001)
     q, qd, qdd = motion(t, 1.0, 10.0, 2)
     o = ConditioningOptions(cutoff_hz=25.0, parallel_filter_hz=8.0)
-    r = identify(t, q, torque(q, qd, qdd), robot, methods=("ls",), effort_is_torque=True,
-                 conditioning=o)  # fmt: skip
+    r = identify([run_from_arrays(t, q, torque(q, qd, qdd), torque=True)], robot,
+                 IdentifyOptions(methods=("ls",), conditioning=o))  # fmt: skip
     tr = np.array([truth()[n] for n in r.names])
     err = np.abs(r.results["ls"].theta - tr) / tr
     assert np.all(err < 5e-4), dict(zip(r.names, err, strict=True))
@@ -162,8 +163,9 @@ def test_options_round_trip_and_errors():
 def test_most_rows_dropped_is_warned(robot):
     t, q, tau = log(500, 0.2, 2.0, 1)
     sign = load_robot("dfki_double_pendulum")  # tanh model: keeps the rows near zero speed
-    r = identify(t, q, tau, sign, methods=("ls",), effort_is_torque=True,
-                 conditioning=ConditioningOptions(stiction_threshold=2.0))  # fmt: skip
+    o = ConditioningOptions(stiction_threshold=2.0)
+    r = identify([run_from_arrays(t, q, tau, torque=True)], sign,
+                 IdentifyOptions(methods=("ls",), conditioning=o))  # fmt: skip
     assert any("conditioned samples usable" in w for w in r.warnings), r.warnings
     assert "near zero velocity" in r.rows_summary
 

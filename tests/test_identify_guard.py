@@ -14,8 +14,9 @@ import pytest
 
 from guardid.dynamics import build_model
 from guardid.estimators import LeastSquares, d_tau
-from guardid.identify import identification_rows, identify
-from guardid.identify.pipeline import identified_names, run_hopfield, trajectory_highest_harmonic
+from guardid.identify import HopfieldSettings, IdentifyOptions, identification_rows, identify
+from guardid.identify.methods import run_hopfield
+from guardid.identify.pipeline import identified_names, trajectory_highest_harmonic
 from guardid.identify.runs import load_run
 from guardid.log import read_log
 from guardid.robot import load_robot
@@ -54,9 +55,7 @@ def _hh(log):
 
 @pytest.fixture(scope="module")
 def result(logs):
-    run = load_run(logs["a"])
-    return identify(run.t, run.q, run.current, GUARD, voltage_v=run.voltage, ticks=run.ticks,
-                    highest_harmonic_hz=_hh(logs["a"]))  # fmt: skip
+    return identify([load_run(logs["a"])], GUARD)
 
 
 def test_offsets_declared_absent_are_not_identified(result):
@@ -144,12 +143,9 @@ def test_two_logs_fit_the_motors_on_both(logs, result):
     """Stacked logs: the motor equations of both runs form one fit (no row spans the two
     runs), so R and Ke use every row of both and are at least as certain as from one."""
     runs = [load_run(logs[k]) for k in ("a", "b")]
-    single_b = identify(runs[1].t, runs[1].q, runs[1].current, GUARD, methods=("ls",),
-                        voltage_v=runs[1].voltage, ticks=runs[1].ticks).motors  # fmt: skip
-    both = identify(
-        [r.t for r in runs], [r.q for r in runs], [r.current for r in runs], GUARD,
-        methods=("ls",), voltage_v=[r.voltage for r in runs], ticks=[r.ticks for r in runs],
-    ).motors  # fmt: skip
+    ls = IdentifyOptions(methods=("ls",))
+    single_b = identify(runs[1:], GUARD, ls).motors
+    both = identify(runs, GUARD, ls).motors
     for m, a, b, joint in zip(both, result.motors, single_b, GUARD.joints, strict=True):
         assert m.rows == a.rows + b.rows
         assert m.resistance == pytest.approx(joint.drive.resistance, rel=0.03)
@@ -167,8 +163,8 @@ def test_hopfield_column_is_the_network_not_least_squares(result, logs):
     # a fixed-gain network's end value is not the batch optimum (it sits a few std away)
     assert np.max(np.abs(hop.theta - ls.theta) / ls.std) > 0.1
     run = load_run(logs["a"])
-    both = identify(run.t, run.q, run.current, GUARD, methods=("hopfield",),
-                    highest_harmonic_hz=_hh(logs["a"]), hopfield_settle=True)  # fmt: skip
+    settle = IdentifyOptions(methods=("hopfield",), hopfield=HopfieldSettings(settle=True))
+    both = identify([run], GUARD, settle)
     np.testing.assert_array_equal(both.results["hopfield"].theta, hop.theta)
     _, A, y = identification_rows(
         run.t, run.q, run.current, GUARD, highest_harmonic_hz=_hh(logs["a"])

@@ -13,7 +13,7 @@ from test_foreign_logs import AXIS_YAML, jittered_time, sines, write_csv
 from guardid.cli import main
 from guardid.dynamics import build_model
 from guardid.errors import ConfigError
-from guardid.identify import identify
+from guardid.identify import IdentifyOptions, identify, run_from_arrays
 from guardid.identify.pipeline import MethodResult
 from guardid.identify.trust import mark_not_converged, mass_matrix_along
 from guardid.robot import load_robot
@@ -69,14 +69,13 @@ def test_stribeck_adds_its_column():
 
 def test_smooth_model_keeps_rows_near_zero_velocity_and_sign_drops_them():
     t, q, tau = synthetic.log(500, 0.2, 2.0, 4, duration_s=20.0)
-    smooth = identify(t, q, tau, load_robot("dfki_double_pendulum"), methods=("ls",),
-                      effort_is_torque=True)  # fmt: skip
+    run, ls = [run_from_arrays(t, q, tau, torque=True)], IdentifyOptions(methods=("ls",))
+    smooth = identify(run, load_robot("dfki_double_pendulum"), ls)
     path = load_robot("dfki_double_pendulum").source
     data = yaml.safe_load(open(path, encoding="utf-8"))
     for j in data["joints"]:
         j["friction"] = {"viscous": 0.001, "coulomb": 0.09, "offset": None}
-    sign = identify(t, q, tau, parse_robot(data, "sign.yaml"), methods=("ls",),
-                    effort_is_torque=True)  # fmt: skip
+    sign = identify(run, parse_robot(data, "sign.yaml"), ls)
     assert "near zero velocity" not in smooth.rows_summary
     assert "near zero velocity" in sign.rows_summary
 
@@ -93,8 +92,8 @@ def _negative_friction_log():
 
 def test_negative_friction_is_flagged_and_bls_keeps_it_feasible():
     t, q, tau = _negative_friction_log()
-    r = identify(t, q, tau, load_robot("dfki_double_pendulum"), methods=("ls", "bls"),
-                 effort_is_torque=True)  # fmt: skip
+    r = identify([run_from_arrays(t, q, tau, torque=True)], load_robot("dfki_double_pendulum"),
+                 IdentifyOptions(methods=("ls", "bls")))  # fmt: skip
     k = r.names.index("Fv1")
     assert r.results["ls"].theta[k] < 0
     assert any(w.startswith("Fv1 = ") and "physically impossible" in w for w in r.warnings)
@@ -194,8 +193,8 @@ def test_measured_velocities_enter_the_fit():
     data = yaml.safe_load(open(path, encoding="utf-8"))
     for j in data["joints"]:
         j["friction"]["velocity_scale"] = synthetic.V_SCALE
-    r = identify(t, q, tau, parse_robot(data, "s.yaml"), methods=("ls",),
-                 effort_is_torque=True, qd=qd)  # fmt: skip
+    r = identify([run_from_arrays(t, q, tau, torque=True, qd=qd)], parse_robot(data, "s.yaml"),
+                 IdentifyOptions(methods=("ls",)))  # fmt: skip
     assert any("measured velocities used" in n for n in r.notes)
     ls, tr = r.results["ls"], np.array([synthetic.truth()[n] for n in r.names])
     well = ls.rel_std_pct < 5

@@ -7,7 +7,7 @@ import pytest
 from click.testing import CliRunner
 
 from guardid.cli import main
-from guardid.identify import METHODS, identify
+from guardid.identify import IdentifyOptions, identify, method_names, run_from_arrays
 from guardid.reproduce import seed001_table1
 from guardid.robot import load_robot
 
@@ -59,10 +59,10 @@ def test_cli_prints_mlp_and_wall_time():
 
 
 def test_identify_method_mlp():
-    assert "mlp" in METHODS
+    assert "mlp" in method_names()
     t, q, _, _, tau, _, _ = seed001_table1.simulate(duration=10.0)
     desc = load_robot("planar2")
-    r = identify(t, q, tau, desc, methods=("ls", "mlp"), effort_is_torque=True)
+    r = identify([run_from_arrays(t, q, tau, torque=True)], desc, IdentifyOptions(("ls", "mlp")))
     mlp = r.results["mlp"]
     assert mlp.std is not None and mlp.std.shape == mlp.theta.shape  # spread over the rows
     np.testing.assert_allclose(mlp.theta, r.nominal, rtol=0.02)

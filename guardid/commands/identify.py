@@ -67,14 +67,6 @@ def _load(log, robot_opt, columns, sample_period, mat_var, mat_columns):
     return load_run(log, mapping=mapping, description=description), description
 
 
-def _highest_harmonic(log, run):
-    """The excitation's highest frequency [Hz] from a guardid log's header (read with the
-    log: None for a foreign layout, then the cut-off is chosen from the data)."""
-    if run.ticks is None or getattr(run, "torque", False) or str(log).lower().endswith(".mat"):
-        return None
-    return run.highest_harmonic_hz
-
-
 def _load_all(logs, robot_opt, foreign):
     """(runs, description) of one or more logs; every log must name the same robot."""
     runs, description = [], None
@@ -139,35 +131,20 @@ _CUTOFF_HELP = (
 )
 
 
-def _arrays(runs):
-    """identify()'s per-run arrays (lists for several runs)."""
-    several = len(runs) > 1
-    out = {
-        k: [getattr(r, k) for r in runs] if several else getattr(runs[0], k)
-        for k in ("t", "q", "current", "voltage", "ticks", "qd", "setpoint")
-    }
-    if several and any(v is None for v in out["voltage"] + out["ticks"]):
-        out["voltage"] = out["ticks"] = None
-    if several and any(v is None for v in out["qd"]):
-        out["qd"] = None
-    if several and any(v is None for v in out["setpoint"]):
-        out["setpoint"] = None
-    return out
+class _MethodOption(click.Option):
+    """--method: its help lists the registered estimators when shown (plugins included)."""
+
+    def get_help_record(self, ctx):
+        from guardid.identify.methods import method_help
+
+        self.help = method_help()
+        return super().get_help_record(ctx)
 
 
 @click.command()
 @click.argument("log", nargs=-1, required=True, type=click.Path(dir_okay=False, exists=True))
 @click.option("--robot", default=None, help="Shipped robot or YAML path [default: the log's].")
-@click.option(
-    "--method",
-    default="ls,wls,rls,hopfield",
-    show_default=True,
-    help="Comma-separated: ls, wls, bls (bounded: friction and rotor inertia >= 0), rls, "
-    "hopfield, gradient, mlp, iv (IDIM-IV: instruments from a simulation of the closed loop "
-    "with the log's setpoints, the robot's pid: and the estimate), didim (closed-loop output "
-    "error on the simulated regressor); iv and didim need a guardid log with sp_* columns "
-    "and a robot with motors, encoders and pid:.",
-)
+@click.option("--method", cls=_MethodOption, default="ls,wls,rls,hopfield", show_default=True)
 @click.option("--cutoff", type=_POSITIVE, default=None, help=_CUTOFF_HELP)
 @click.option("--beta", type=_POSITIVE, default=0.01, show_default=True, help="Hopfield gain beta.")
 @click.option(
@@ -216,6 +193,7 @@ def identify(
     """
     from guardid.commands._status import Status
     from guardid.conditioning.options import ConditioningOptions
+    from guardid.identify import HopfieldSettings, IdentifyOptions
     from guardid.identify import identify as run_identify
     from guardid.identify.report import plot, table, to_yaml_dict
 
@@ -230,24 +208,21 @@ def identify(
     if len({r.torque for r in runs}) > 1:
         raise ConfigError(f"{logs[-1]}: mixes measured torque and motor current with {log}")
     methods = tuple(m.strip() for m in method.split(",") if m.strip())
-    options = ConditioningOptions(cutoff_hz=cutoff, parallel_filter_hz=parallel_hz)
+    options = IdentifyOptions(
+        methods=methods, conditioning=ConditioningOptions(cutoff_hz=cutoff,
+        parallel_filter_hz=parallel_hz), hopfield=HopfieldSettings(beta=beta), rls_lambda=lam,
+        gradient_eta=eta, in_current_units=current_units,
+    )  # fmt: skip
     if cv:
-        _cross_validate(logs, runs, description, methods, options, current_units, beta, lam, eta)
+        _cross_validate(logs, runs, description, options)
         return
-    arrays = _arrays(runs)
     forked = None  # the tracker's replay on another core while the batch fit runs
     if plot_path is None and report_path is None:
         from guardid.online.offline import start_tracking
 
         forked = start_tracking(run, description, methods, lam, beta, log_path=log)
     status.stage("conditioning and fitting")
-    result = run_identify(
-        arrays["t"], arrays["q"], arrays["current"], description, methods=methods,
-        conditioning=options, beta=beta, lam=lam, gradient_eta=eta, voltage_v=arrays["voltage"],
-        ticks=arrays["ticks"], in_current_units=current_units, effort_is_torque=run.torque,
-        highest_harmonic_hz=_highest_harmonic(log, run), qd=arrays["qd"],
-        setpoints=arrays["setpoint"],
-    )  # fmt: skip
+    result = run_identify(runs, description, options)
     if result.untrusted and not force:
         raise UntrustedResult(
             f"{log}: identification cannot be trusted: {'; '.join(result.untrusted)} "
@@ -333,17 +308,13 @@ def _consistent(result, runs, description, torque):
     return add_consistent(result, efforts, description, torque)
 
 
-def _cross_validate(logs, runs, description, methods, options, current_units, beta, lam, eta):
+def _cross_validate(logs, runs, description, options):
     """``identify --cv``: leave one run out, fit the rest, score the held-out run."""
     from guardid.identify.crossval import leave_one_run_out
 
     if len(runs) < 2:
         raise ConfigError(f"{logs[0]}: --cv needs at least two logs (one is held out)")
-    text = leave_one_run_out(
-        logs, runs, description, methods, options, current_units=current_units,
-        settings={"beta": beta, "lam": lam, "gradient_eta": eta},
-    )  # fmt: skip
-    click.echo(text)
+    click.echo(leave_one_run_out(logs, runs, description, options))
 
 
 @click.command()

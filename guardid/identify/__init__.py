@@ -1,20 +1,41 @@
-"""Identification: from a log to base parameters (LS, WLS, RLS, Hopfield, gradient) and motors."""
+"""Identification: from runs (logs) to base parameters by registered estimators, and motors.
 
-from guardid.identify.electrical import MotorEstimate, identify_motor
-from guardid.identify.pipeline import (
-    METHODS,
-    Identification,
-    MethodResult,
-    identification_rows,
-    identify,
-)
+In five lines (docs/CONTRACTS.md, README "Python API")::
 
-__all__ = [
-    "METHODS",
-    "Identification",
-    "MethodResult",
-    "MotorEstimate",
-    "identification_rows",
-    "identify",
-    "identify_motor",
-]
+    from guardid.identify import IdentifyOptions, identify, load_run
+    from guardid.robot import load_robot
+
+    r = identify([load_run("run.csv")], load_robot("guard"), IdentifyOptions(methods=("wls",)))
+    for name, value, std in zip(r.names, r.results["wls"].theta, r.results["wls"].std):
+        print(f"{name} {value:.4g} +- {std:.2g}")  # base parameters [SI] and their std
+"""
+
+from importlib import import_module
+
+_WHERE = {
+    "MotorEstimate": "electrical",
+    "identify_motor": "electrical",
+    "Method": "methods",
+    "MethodFit": "methods",
+    "method_names": "methods",
+    "register": "methods",
+    "HopfieldSettings": "pipeline",
+    "Identification": "pipeline",
+    "IdentifyOptions": "pipeline",
+    "MethodResult": "pipeline",
+    "identification_rows": "pipeline",
+    "identify": "pipeline",
+    "run_from_arrays": "pipeline",
+    "Run": "runs",
+    "load_run": "runs",
+}
+"""Where each name lives: imported on first use, so that ``guardid identify --help`` (which
+lists the registered methods) does not load the numerical stack."""
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name):
+    if name in _WHERE:
+        return getattr(import_module(f"guardid.identify.{_WHERE[name]}"), name)
+    raise AttributeError(f"module 'guardid.identify' has no attribute {name!r}")

@@ -8,6 +8,8 @@ joints, rms(tau - tau_model) / rms(tau) (:mod:`guardid.identify.validation`).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from guardid.identify.pipeline import identify
@@ -15,25 +17,16 @@ from guardid.identify.rows import stacked_rows
 from guardid.identify.validation import ParameterSet, _run_tuple, score_sets
 
 
-def fold_scores(runs, description, methods, options, *, current_units=False, settings=None):
-    """Per held-out run: (cut-off [Hz], {method: stacked relative rms error [-]})."""
-    settings = settings or {}
+def fold_scores(runs, description, options):
+    """Per held-out run: (cut-off [Hz], {method: stacked relative rms error [-]}) of
+    ``options`` (:class:`~guardid.identify.pipeline.IdentifyOptions`)."""
+    methods, current_units = options.methods, options.in_current_units
     torque = bool(runs[0].torque)
     out = []
     for i, held in enumerate(runs):
-        train = [r for k, r in enumerate(runs) if k != i]
-        qd = [getattr(r, "qd", None) for r in train]
-        loop = {}  # iv / didim: the closed loop's inputs, when every training run has them
-        closed = ("setpoints", "setpoint"), ("ticks", "ticks"), ("voltage_v", "voltage")
-        for key, attr in closed if {"iv", "didim"} & set(methods) else ():
-            values = [getattr(r, attr, None) for r in train]
-            loop[key] = None if any(v is None for v in values) else values
-        result = identify(
-            [r.t for r in train], [r.q for r in train], [r.current for r in train],
-            description, methods=methods, conditioning=options,
-            in_current_units=current_units, effort_is_torque=torque,
-            qd=None if any(v is None for v in qd) else qd, **loop, **settings,
-        )  # fmt: skip
+        # the cut-off is chosen from the training runs' data alone (no header hint)
+        train = [replace(r, highest_harmonic_hz=None) for k, r in enumerate(runs) if k != i]
+        result = identify(train, description, options)
         nominal = dict(zip(result.names, result.nominal, strict=True))
         sets = []
         for m in methods:
@@ -58,11 +51,10 @@ def _all_base_values(description, identified):
     return values
 
 
-def leave_one_run_out(logs, runs, description, methods, options, *, current_units=False,
-                      settings=None) -> str:  # fmt: skip
+def leave_one_run_out(logs, runs, description, options) -> str:
     """The ``--cv`` table: one line per held-out log, then the mean over the folds."""
-    folds = fold_scores(runs, description, methods, options, current_units=current_units,
-                        settings=settings)  # fmt: skip
+    methods = options.methods
+    folds = fold_scores(runs, description, options)
     width = max(len(str(x)) for x in logs) + 2
     head = f"{'held-out run':{width}s} {'cut-off':>8s}" + "".join(
         f" {m.upper():>9s}" for m in methods

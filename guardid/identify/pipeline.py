@@ -1,14 +1,17 @@
-"""The identification pipeline: log -> conditioning -> base regressor -> estimators.
+"""The identification pipeline, stage by stage (docs/CONTRACTS.md):
 
-Inputs are a guardid log (or arrays in its shape) and the robot description; outputs are
-the base parameters per method with their uncertainty, the torque fit, and the motors'
-electrical parameters. Time comes from the tick column; lost ticks are gaps, which the
-conditioning stage bridges by resampling.
+runs (:class:`~guardid.identify.runs.Run`) -> segments, conditioned signals and equation
+rows (:func:`~guardid.identify.rows.stacked_rows`) -> the estimators named in the options
+(:mod:`guardid.identify.methods`, registered by name) -> result (:class:`Identification`:
+estimates with their uncertainty, checks, the motors' electrical parameters).
+
+Time comes from the tick column; lost ticks are gaps, which the conditioning stage
+bridges by resampling. Everything :func:`identify` is told besides the data is one
+:class:`IdentifyOptions`.
 """
 
 from __future__ import annotations
 
-import copy
 import math
 from dataclasses import dataclass, field
 
@@ -18,16 +21,9 @@ from guardid.conditioning.bandwidth import HARMONIC_FACTOR
 from guardid.conditioning.options import ConditioningOptions
 from guardid.dynamics import build_model
 from guardid.errors import GuardidError
-from guardid.estimators import (
-    MLP,
-    RLS,
-    Gradient,
-    Hopfield,
-    LeastSquares,
-    WeightedLeastSquares,
-    d_tau,
-)
+from guardid.estimators import LeastSquares, d_tau
 from guardid.identify.electrical import MotorEstimate, identify_motor
+from guardid.identify.methods import FitRows, MethodFit, methods_for
 from guardid.identify.rows import (  # noqa: F401  (re-exported)
     STICTION_GUARD_PERIODS,
     Rows,
@@ -36,16 +32,10 @@ from guardid.identify.rows import (  # noqa: F401  (re-exported)
     rows_summary,
     stacked_rows,
 )
-from guardid.identify.trust import (
-    BoundedLeastSquares,
-    impossible_values,
-    lower_bounds,
-    mark_not_converged,
-    stacked_error,
-)
+from guardid.identify.runs import Run
+from guardid.identify.trust import impossible_values, mark_not_converged, stacked_error
 from guardid.identify.untrusted import trust_problems
 
-METHODS = ("ls", "wls", "bls", "rls", "hopfield", "gradient", "mlp", "iv", "didim")
 POOR_REL_STD_PCT = 10.0  #: warn when a parameter's relative standard deviation exceeds this
 REFERENCE_METHODS = ("wls", "ls")
 """The method whose estimate and std a report's verdict uses: the first of these that ran.
@@ -59,6 +49,47 @@ IV meets the same bars there (its biases up to 0.2 std smaller on the tracking
 excitation), DIDIM's std is up to 1.4x too small on it."""
 
 
+@dataclass(frozen=True)
+class HopfieldSettings:
+    """The Hopfield network's: gain ``beta`` [unit of y^2 times s]; ``passes`` over the rows,
+    each starting where the previous ended; ``nominal`` (b',) [SI] the start and centre of
+    its box (+-100 %; None: the description's base values); ``settle``: also report the
+    network's equilibrium on the whole log as ``hopfield-eq`` (the least-squares estimate
+    inside the box, never the network's own)."""
+
+    beta: float = 0.01
+    passes: int = 1
+    nominal: tuple[float, ...] | None = None
+    settle: bool = False
+
+    def __post_init__(self):
+        if self.nominal is not None:  # a tuple: options stay immutable
+            object.__setattr__(self, "nominal", tuple(float(x) for x in self.nominal))
+
+
+@dataclass(frozen=True)
+class IdentifyOptions:
+    """How :func:`identify` runs, everything but the data.
+
+    ``methods``: names of registered estimators (:func:`guardid.identify.methods.method_names`),
+    fitted and reported in this order; ``conditioning``: :class:`ConditioningOptions`
+    (None: all automatic); ``hopfield``: :class:`HopfieldSettings`; ``rls_lambda``: RLS
+    forgetting factor in (0, 1]; ``gradient_eta``: the gradient estimator's gain;
+    ``in_current_units``: no current-to-torque gain (estimates in the effort's unit).
+    Whether the effort is measured torque comes with the data (:attr:`Run.torque`).
+    """
+
+    methods: tuple[str, ...] = ("ls", "wls", "rls", "hopfield")
+    conditioning: ConditioningOptions | None = None
+    hopfield: HopfieldSettings = field(default_factory=HopfieldSettings)
+    rls_lambda: float = 1.0
+    gradient_eta: float = 1e-3
+    in_current_units: bool = False
+
+    def __post_init__(self):
+        object.__setattr__(self, "methods", tuple(self.methods))
+
+
 def reference_method(results) -> str | None:
     """Name of the method the verdict uses (:data:`REFERENCE_METHODS`, then any with std)."""
     for m in REFERENCE_METHODS:
@@ -69,7 +100,8 @@ def reference_method(results) -> str | None:
 
 @dataclass
 class MethodResult:
-    """One estimator's outcome: estimate (b,), std (b,) or None, history (K, b) or None."""
+    """One estimator's outcome: estimate (b,), std (b,) or None, history (K, b) or None;
+    ``cov`` (b, b) its covariance when the estimator gives one; ``notes``: its warnings."""
 
     method: str
     theta: np.ndarray
@@ -82,6 +114,8 @@ class MethodResult:
     settings: dict = field(default_factory=dict)
     converged: bool = True  # False: in-sample fit much worse than LS's (not an equal)
     d_stacked: float = math.nan  # in-sample rms(y - A theta) / rms(y), joints stacked [-]
+    cov: np.ndarray | None = None
+    notes: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -134,133 +168,103 @@ def trajectory_highest_harmonic(trajectory: dict | None) -> float | None:
     return None
 
 
-def identify(
+def run_from_arrays(
     t_s,
-    q_rad,
-    current_a,
-    description,
-    methods=("ls", "wls", "rls", "hopfield"),
-    conditioning: ConditioningOptions | None = None,
-    beta: float = 0.01,
-    lam: float = 1.0,
-    gradient_eta: float = 1e-3,
+    q,
+    effort,
+    *,
+    torque=False,
     voltage_v=None,
     ticks=None,
-    in_current_units: bool = False,
-    effort_is_torque: bool = False,
-    highest_harmonic_hz: float | None = None,
-    hopfield_passes: int = 1,
-    hopfield_nominal=None,
-    hopfield_settle: bool = False,
+    setpoint=None,
     qd=None,
-    setpoints=None,
-) -> Identification:
-    """Identify the base parameters of ``description`` from one run (or several).
-
-    t_s (N,) [s]; q_rad (N, n); current_a (N, n) motor current [A] (period means, guard
-    firmware) or joint torque with drive-less joints; voltage_v and ticks (optional) add the
-    motors' R and Ke. ``methods`` is any subset of :data:`METHODS`. ``effort_is_torque``:
-    current_a is measured joint torque [N m] (see :func:`identification_rows`).
-    ``highest_harmonic_hz`` [Hz] (the excitation's, e.g. from the log header,
-    :func:`trajectory_highest_harmonic`) informs the automatic cut-off; ``conditioning``
-    (:class:`ConditioningOptions`, default all automatic) says how the logs are conditioned
-    (:func:`stacked_rows`); the options used, cut-off resolved, are in the result.
-    Hopfield starts from ``hopfield_nominal`` (b',) (default: the description's base values)
-    in a box of +-100 % of it and runs ``hopfield_passes`` times over the rows, each pass
-    starting where the previous one ended (same box). ``results['hopfield']`` is the
-    network's own estimate: its state at the end of the online passes (also in
-    ``settings['online_end']``), with its history for the plots. With ``hopfield_settle``
-    the network also settles with the whole log's weights (:meth:`Hopfield.settle`); that
-    equilibrium is the least-squares estimate inside the box (it equals LS to many digits
-    when LS lies inside), so it is reported separately as ``results['hopfield-eq']``,
-    never as the Hopfield estimate.
-
-    Several runs: t_s, q_rad and current_a are lists (one array per run), conditioned
-    separately and their rows stacked (:func:`stacked_rows`); voltage_v and ticks are then
-    lists too and the motors are estimated from all runs together (a motor-equation row
-    never spans two runs). ``qd`` (N, n) [rad/s | m/s] (a list for several runs): measured
-    joint velocities, used instead of the differentiated positions. ``bls`` is least squares
-    with friction and rotor inertia kept >= 0 (:mod:`guardid.identify.trust`).
-    ``iv`` and ``didim`` (:mod:`guardid.closedloop`) simulate the closed loop: they need
-    ``setpoints`` (N, n) [rad] (a list for several runs), ``ticks`` and ``voltage_v``.
-    """
-    unknown = [m for m in methods if m not in METHODS]
-    if unknown:
-        raise GuardidError(f"--method: unknown {', '.join(unknown)} (known: {', '.join(METHODS)})")
-    if "iv" in methods or "didim" in methods:
-        from guardid.closedloop import check_inputs
-
-        check_inputs(methods, description, setpoints, ticks)
-    model = build_model(description)
-    several = isinstance(t_s, (list, tuple))
-    runs = list(zip(t_s, q_rad, current_a, strict=True)) if several else [(t_s, q_rad, current_a)]
-    loop_inputs = (
-        runs,
-        *[
-            list(x) if several and x is not None else [x] * len(runs)
-            for x in (ticks, setpoints, voltage_v)
-        ],
-    )  # per run (closedloop)
-    if qd is not None:
-        runs = [(*r, v) for r, v in zip(runs, qd if several else [qd], strict=True)]
-    rows = stacked_rows(
-        runs, description, conditioning, in_current_units=in_current_units,
-        effort_is_torque=effort_is_torque, highest_harmonic_hz=highest_harmonic_hz,
+    highest_harmonic_hz=None,
+    path="<arrays>",
+) -> Run:
+    """A :class:`Run` from arrays (notebooks, simulations): t_s (N,) [s], q (N, n) [rad | m],
+    effort (N, n) motor current [A] (period means) or, with ``torque``, joint torque
+    [N m | N]; optional voltage_v (N, n) [V], ticks (N,), setpoint (N, n) [rad], qd (N, n)
+    measured velocities [rad/s | m/s], the excitation's highest harmonic [Hz]."""
+    return Run(
+        path=str(path), robot=None, ticks=ticks, t=t_s, q=q, current=effort, voltage=voltage_v,
+        torque=bool(torque), highest_harmonic_hz=highest_harmonic_hz, qd=qd, setpoint=setpoint,
     )  # fmt: skip
-    cond, A, y = rows
-    if several:  # motors (R, Ke) from all runs, stacked
-        q_rad = np.concatenate([np.asarray(r[1], dtype=float) for r in runs])
-        current_a = np.concatenate([np.asarray(r[2], dtype=float) for r in runs])
-        voltage_v = (
-            np.concatenate([np.asarray(v, dtype=float) for v in voltage_v]) if voltage_v else None
-        )
-        ticks = _separated_ticks(ticks) if ticks else None
-    free = free_columns(model, description)
-    names = tuple(model.base.names[i] for i in free)
-    nominal = model.base.values(model.params)[free]
-    dt = float(np.median(np.diff(cond.t[cond.mask])))
-    results: dict[str, MethodResult] = {}
-    closed_loop_notes: list[str] = []
-    ls = LeastSquares().fit(A, y)
-    for method in methods:
-        if method == "ls":
-            est = ls
-        elif method == "wls":
-            est = WeightedLeastSquares().fit(A, y)
-        elif method == "bls":
-            est = BoundedLeastSquares(lower_bounds(names)).fit(A, y)
-        elif method == "rls":
-            est = RLS(lam=lam, p0=_rls_p0(A)).fit(A, y)
-        elif method == "hopfield":
-            start = nominal if hopfield_nominal is None else np.asarray(hopfield_nominal, float)
-            est = run_hopfield(A, y, start, beta, dt, hopfield_passes)
-            online_end = np.array(est.theta_)
-            if hopfield_settle:
-                eq = copy.deepcopy(est).settle(A, y)
-        elif method in ("iv", "didim"):  # closed-loop consistent (guardid.closedloop)
-            from guardid.closedloop import fit_closed_loop
 
-            est, note = fit_closed_loop(method, A, y, rows, loop_inputs, description, model,
-                                        free, (in_current_units, effort_is_torque))  # fmt: skip
-            closed_loop_notes += note
-        elif method == "mlp":  # seed 001's network; inputs (q, q', q'') of the usable rows
-            m = cond.mask
-            est = MLP().fit(A, y, X=np.hstack([cond.q[m], cond.qd[m], cond.qdd[m]]))
-        else:
-            est = Gradient(eta=gradient_eta, dt=dt, theta0=nominal).fit(A, y)
-        results[method] = _result(method, est, A, y, cond.t[cond.mask])
-        if method in ("iv", "didim"):  # the report's "(not converged)" and params' flag
-            results[method].converged = bool(est.converged)
-        if method == "hopfield":
-            results[method].settings = {
-                "beta": beta,
-                "passes": hopfield_passes,
-                "online_end": online_end,
-                "settled": hopfield_settle,
-            }
-            if hopfield_settle:  # labelled as what it is: the equilibrium, not the network's
-                results["hopfield-eq"] = _result("hopfield-eq", eq, A, y, cond.t[cond.mask])
-                results["hopfield-eq"].settings = {"equilibrium_of": "hopfield", "beta": beta}
+
+def identify(runs, description, options: IdentifyOptions | None = None) -> Identification:
+    """Identify the base parameters of ``description`` from ``runs`` (a list of :class:`Run`).
+
+    Each run is conditioned on its own and the equation rows are stacked (one fit,
+    :func:`stacked_rows`; the cut-off, when not given in ``options.conditioning``, is chosen
+    by cross-validation, informed by the first run's ``highest_harmonic_hz``); measured
+    velocities (``Run.qd``) replace the differentiated positions when every run has them.
+    Then every method of ``options.methods`` (:mod:`guardid.identify.methods`) is fitted on
+    the rows, and the motors' R and Ke are estimated from every run's voltage and ticks
+    together (a motor-equation row never spans two runs) when all runs have both and the
+    effort is motor current in amperes. The options used, cut-off resolved, are in the result.
+    """
+    options = options or IdentifyOptions()
+    runs = list(runs)
+    torque = _effort_is_torque(runs)
+    methods = methods_for(options.methods)
+    for check in dict.fromkeys(m.check for m in methods if m.check is not None):
+        check(options.methods, runs, description)
+    rows = stacked_rows(
+        [_signals(r, runs) for r in runs], description, options.conditioning,
+        in_current_units=options.in_current_units, effort_is_torque=torque,
+        highest_harmonic_hz=runs[0].highest_harmonic_hz,
+    )  # fmt: skip
+    fit_rows = _fit_rows(rows, runs, description, options, torque)
+    results = _fit_all(methods, fit_rows)
+    return _result_of(fit_rows, results, options, torque)
+
+
+def _effort_is_torque(runs) -> bool:
+    """Whether the runs' effort is measured torque; GuardidError when they mix."""
+    if not runs:
+        raise GuardidError("identify: no runs")
+    kinds = {bool(r.torque) for r in runs}
+    if len(kinds) > 1:
+        raise GuardidError(f"{runs[-1].path}: mixes measured torque and motor current with "
+                           f"{runs[0].path}")  # fmt: skip
+    return kinds.pop()
+
+
+def _signals(run, runs):
+    """(t, q, effort[, qd]) of a run for the rows; qd only when every run has it."""
+    if all(r.qd is not None for r in runs):
+        return run.t, run.q, run.current, run.qd
+    return run.t, run.q, run.current
+
+
+def _fit_rows(rows, runs, description, options, torque) -> FitRows:
+    model = build_model(description)
+    cond, A, y = rows
+    free = free_columns(model, description)
+    return FitRows(
+        A=A, y=y, rows=rows, names=tuple(model.base.names[i] for i in free),
+        nominal=model.base.values(model.params)[free],
+        dt=float(np.median(np.diff(cond.t[cond.mask]))), ls=LeastSquares().fit(A, y),
+        runs=runs, description=description, model=model, free=free, options=options,
+        effort_is_torque=torque,
+    )  # fmt: skip
+
+
+def _fit_all(methods, rows: FitRows) -> dict[str, MethodResult]:
+    """Every method's :class:`MethodResult` (and its extra results right after it)."""
+    results: dict[str, MethodResult] = {}
+    t_rows = rows.rows.cond.t[rows.rows.cond.mask]
+    for method in methods:
+        fit = method.fit(rows)
+        results[method.name] = _result(method.name, fit, rows.A, rows.y, t_rows)
+        for name, extra in fit.extra.items():
+            results[name] = _result(name, extra, rows.A, rows.y, t_rows)
+    return results
+
+
+def _result_of(rows: FitRows, results, options, torque) -> Identification:
+    """The result stage: warnings, trust checks and the motors beside the estimates."""
+    cond, ls, names, runs = rows.rows.cond, rows.ls, rows.names, rows.runs
     ref = reference_method(results)
     rel_std = results[ref].rel_std_pct if ref is not None else ls.rel_std_
     warnings = [
@@ -269,25 +273,27 @@ def identify(
         for name, r in zip(names, rel_std, strict=True)
         if r > POOR_REL_STD_PCT
     ]
-    warnings += rows.warnings + _moving_with_cutoff(rows.choice, names, ls) + closed_loop_notes
+    notes = [n for r in results.values() for n in r.notes]
+    warnings += rows.rows.warnings + _moving_with_cutoff(rows.rows.choice, names, ls) + notes
     warnings += mark_not_converged(results, ls)
-    warnings += impossible_values(model, free, names, ls, cond, in_current_units)
+    warnings += impossible_values(rows.model, rows.free, names, ls, cond, options.in_current_units)
     motors = []
-    if voltage_v is not None and ticks is not None and not (in_current_units or effort_is_torque):
-        motors = _motors(description, ticks, q_rad, voltage_v, current_a)
+    electrical = all(r.voltage is not None and r.ticks is not None for r in runs)
+    if electrical and not (options.in_current_units or torque):
+        motors = _motors(rows.description, runs)
     return Identification(
         names=names,
-        formulas=tuple(model.base.formulas[i] for i in free),
-        nominal=nominal,
+        formulas=tuple(rows.model.base.formulas[i] for i in rows.free),
+        nominal=rows.nominal,
         results=results,
         cond=float(ls.cond_),
-        rows=int(A.shape[0]),
+        rows=int(rows.A.shape[0]),
         cutoff_hz=float(cond.cutoff_hz),
         torque_unit=cond.torque_unit,
         notes=list(cond.notes),
         motors=motors,
         warnings=warnings,
-        conditioning=rows.options,
+        conditioning=rows.rows.options,
         cutoff_reason=cond.notes[0] if cond.notes else "",
         rows_summary=rows_summary(cond),
         untrusted=trust_problems(ls, names, results, motors),
@@ -324,62 +330,30 @@ def _moving_with_cutoff(choice, names, ls) -> list[str]:
     return out
 
 
-def run_hopfield(A, y, nominal, beta: float, dt: float, passes: int = 1) -> Hopfield:
-    """Hopfield estimator from ``nominal`` (b,) in the box nominal +- :func:`_hopfield_half_widths`.
-
-    ``passes`` > 1 runs the log again from where the previous pass ended (same box, same
-    beta [unit of y^2 times s] and sample period dt [s]); ``history_`` then spans all
-    passes (sample counts continue across passes).
-    """
-    nominal = np.asarray(nominal, dtype=float)
-    half = _hopfield_half_widths(nominal)
-    bounds = (nominal - half, nominal + half)
-    est = Hopfield(theta_n=nominal, bounds=bounds, beta=beta, dt=dt).fit(A, y)
-    hist, counts = [est.history_], [est.history_samples_]
-    for k in range(1, max(int(passes), 1)):
-        est = Hopfield(theta_n=est.theta_, bounds=bounds, beta=beta, dt=dt).fit(A, y)
-        hist.append(est.history_)
-        counts.append(est.history_samples_ + k * A.shape[0])
-    est.history_ = np.concatenate(hist)
-    est.history_samples_ = np.concatenate(counts)
-    return est
-
-
-def _rls_p0(A) -> float:
-    """RLS initial covariance [(unit of theta / unit of y)^2]: 1e6 / mean(A^2), so that the
-    prior's weight is ~1e-10 of one row's whatever the regressor's scale (RLS(lambda=1)
-    then ends within ~1e-8 relative of LS)."""
-    scale = float(np.mean(np.square(A)))
-    return 1e10 / scale if scale > 0 else 1e10
-
-
-def _hopfield_half_widths(nominal: np.ndarray) -> np.ndarray:
-    """The prior box of each base parameter: +-100 % of its nominal value, with a floor."""
-    floor = 0.1 * float(np.median(np.abs(nominal[nominal != 0]))) if np.any(nominal) else 1.0
-    return np.maximum(np.abs(nominal), floor)
-
-
-def _result(method, est, A, y, t_rows) -> MethodResult:
-    theta = np.asarray(est.theta_, dtype=float)
-    std = getattr(est, "std_", None)
-    rel = getattr(est, "rel_std_", None)
-    hist = getattr(est, "history_", None)
-    hist_t = None
+def _result(method, fit: MethodFit, A, y, t_rows) -> MethodResult:
+    """A :class:`MethodResult`: the fit, its error on the rows, its history's times [s]."""
+    theta = np.asarray(fit.theta, dtype=float)
+    hist, hist_t = fit.history, None
     if hist is not None and len(hist):
-        idx = np.asarray(getattr(est, "history_samples_", np.arange(len(hist))), dtype=int)
+        samples = fit.history_samples
+        idx = np.asarray(np.arange(len(hist)) if samples is None else samples, dtype=int)
         n = len(t_rows)
         span = float(t_rows[-1] - t_rows[0]) + (float(t_rows[1] - t_rows[0]) if n > 1 else 0.0)
         hist_t = t_rows[np.clip(idx - 1, 0, None) % n] + np.clip(idx - 1, 0, None) // n * span
     return MethodResult(
         method=method,
         theta=theta,
-        std=None if std is None else np.asarray(std),
-        rel_std_pct=None if rel is None else np.asarray(rel),
+        std=None if fit.std is None else np.asarray(fit.std),
+        rel_std_pct=None if fit.rel_std_pct is None else np.asarray(fit.rel_std_pct),
         history=None if hist is None else np.asarray(hist),
         history_t=hist_t,
         d_tau=float(d_tau(A, y, theta)),
-        d_stacked=stacked_error(A, y, theta),
         d_tau_per_joint=np.asarray(d_tau(A, y, theta, per_joint=True)),
+        settings=dict(fit.settings),
+        converged=bool(fit.converged),
+        d_stacked=stacked_error(A, y, theta),
+        cov=fit.cov,
+        notes=list(fit.notes),
     )
 
 
@@ -394,7 +368,17 @@ def _separated_ticks(ticks_per_run) -> np.ndarray:
     return np.concatenate(out)
 
 
-def _motors(description, ticks, q_rad, voltage_v, current_a) -> list[MotorEstimate]:
+def _motors(description, runs) -> list[MotorEstimate]:
+    """Each driven, encoded joint's R and Ke from every run's ticks, q, voltage and current."""
+    if len(runs) == 1:
+        ticks, q_rad, voltage_v, current_a = (runs[0].ticks, runs[0].q, runs[0].voltage,
+                                              runs[0].current)  # fmt: skip
+    else:  # stacked, each run's ticks shifted so that no pair of ticks spans two runs
+        ticks = _separated_ticks([r.ticks for r in runs])
+        q_rad, voltage_v, current_a = (
+            np.concatenate([np.asarray(getattr(r, k), dtype=float) for r in runs])
+            for k in ("q", "voltage", "current")
+        )
     out = []
     period = description.sample_period
     for j, joint in enumerate(description.joints):

@@ -29,7 +29,7 @@ from guardid.estimators import LeastSquares
 ZERO_SIGMAS = 3.0  #: an estimate within this many std of zero is "consistent with zero"
 SMALL_FRACTION = 0.1
 """A parameter smaller than this share of its kind's scale is judged against that share [-]
-(the same floor as the batch Hopfield box, :func:`guardid.identify.pipeline.run_hopfield`)."""
+(the same floor as the batch Hopfield box, :func:`guardid.identify.methods.run_hopfield`)."""
 
 
 class DecimatedLS:

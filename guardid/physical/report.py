@@ -16,9 +16,10 @@ METHOD = "consistent"
 def add_consistent(result, runs, description, effort_is_torque=False):
     """Fit the consistent model on ``result``'s rows and add it as ``results['consistent']``.
 
-    ``runs``: [(t [s], q [rad], effort)] as given to :func:`guardid.identify.identify`, which
-    made ``result``: conditioned under ``result.conditioning`` (the options identify used,
-    cut-off resolved). Returns the :class:`ConsistentFit`.
+    ``runs``: [(t [s], q [rad], effort)] of the runs given to
+    :func:`guardid.identify.identify`, which made ``result``: conditioned under
+    ``result.conditioning`` (the options identify used, cut-off resolved). Returns the
+    :class:`ConsistentFit`.
     """
     if result.torque_unit != "N m":
         raise GuardidError(
@@ -39,16 +40,15 @@ def add_consistent(result, runs, description, effort_is_torque=False):
     return fit
 
 
-def identify_consistent(t_s, q_rad, effort, description, **kwargs):
+def identify_consistent(runs, description, options=None):
     """:func:`guardid.identify.identify` plus the consistent fit: (Identification, fit).
 
-    Same arguments (lists of arrays for several runs); ``kwargs`` go to ``identify``.
+    Same arguments: a list of :class:`~guardid.identify.runs.Run`, the description and the
+    :class:`~guardid.identify.pipeline.IdentifyOptions`.
     """
-    result = identify(t_s, q_rad, effort, description, **kwargs)
-    several = isinstance(t_s, (list, tuple))
-    runs = list(zip(t_s, q_rad, effort, strict=True)) if several else [(t_s, q_rad, effort)]
-    fit = add_consistent(result, runs, description, kwargs.get("effort_is_torque", False))
-    return result, fit
+    result = identify(runs, description, options)
+    efforts = [(r.t, r.q, r.current) for r in runs]
+    return result, add_consistent(result, efforts, description, bool(runs[0].torque))
 
 
 def standard_table(fit: ConsistentFit) -> str:
