@@ -250,3 +250,114 @@ def test_a_closed_loop_fit_that_does_not_settle_is_marked_in_the_result(quiet_lo
     assert result.results["wls"].converged
     assert not result.results["iv"].converged
     assert any("iv" in w.lower() and str(MAX_ITER) in w for w in result.warnings)
+
+
+# --- a closed loop that cannot be simulated, or diverges (issue 27 item 5) -------------------
+
+ZZ1R = MODEL.base.names.index("ZZ1R")
+
+
+def _pan_inertia(theta, q2_rad):
+    """The pan's effective inertia at tilt q2 (its M11 from the base regressor, friction out)."""
+    return BaseDynamics(MODEL, theta).mass_matrix([[0.0, q2_rad]])[0, 0, 0]
+
+
+def test_a_negative_inertia_is_refused_before_simulating(quiet_log):
+    """Truth: a pan inertia lowered by hand below zero (M11 = ZZ1R + ... < 0 at every tilt)
+    is no robot's; the simulator refuses it in one phrase instead of integrating it into NaN
+    (it once reached adc_quantise: 'cannot convert float NaN to integer')."""
+    from guardid.closedloop.simulate import NotSimulable
+
+    run = load_run(quiet_log)
+    start = start_state((run.t, run.q, run.current), run.ticks, run.voltage, COUNT_RAD / 2)
+    bad = TRUTH.copy()
+    bad[ZZ1R] -= _pan_inertia(TRUTH, 0.0) + 0.5  # M11(q2 = 0) = -0.5 kg m^2
+    with pytest.raises(NotSimulable, match="not positive definite"):
+        simulate(GUARD, MODEL, bad, run.ticks, run.setpoint, *start)
+
+
+def test_a_simulation_that_runs_away_stops_with_its_time(quiet_log, monkeypatch):
+    """The guard between integration and sensors: a pan inertia of 0.01 kg m^2 stepped once
+    per 15 ms tick (the fixed step the simulator used to take whatever the estimate) is
+    unstable (h c / m = 0.015 x 9.55 / 0.01 = 14 > 2.785, RK4's limit), so the state runs
+    away within a few ticks; the simulation stops there, with the time, instead of handing
+    the state to the ADC model."""
+    import guardid.closedloop.simulate as sim
+    from guardid.closedloop.simulate import NotSimulable, SimulationDiverged
+
+    run = load_run(quiet_log)
+    start = start_state((run.t, run.q, run.current), run.ticks, run.voltage, COUNT_RAD / 2)
+    small = TRUTH.copy()
+    small[ZZ1R] -= _pan_inertia(TRUTH, float(run.q[0, 1])) - 0.01
+    with pytest.raises(NotSimulable, match="too small"):  # it asks for more steps than 4
+        simulate(GUARD, MODEL, small, run.ticks, run.setpoint, *start)
+    monkeypatch.setattr(sim, "stiffness_substeps", lambda *a: 1)
+    with pytest.raises(SimulationDiverged) as info:
+        simulate(GUARD, MODEL, small, run.ticks, run.setpoint, *start)
+    assert 0.0 < info.value.time_s < 1.0, info.value.time_s
+    assert "diverged at t =" in str(info.value) and "joint 1" in str(info.value)
+
+
+def test_a_step_that_leaves_the_physical_set_is_shortened():
+    """F jumps to theta_0 = 3 every time, but only theta_0 <= 1.5 can be simulated: the
+    iterate stops at the boundary (each step halved until it is inside), the fit is not
+    converged and says why; the regressor is never asked for a set outside."""
+    rng = np.random.default_rng(2)
+    A = rng.normal(size=(100, 2, 2))
+    y = A @ np.array([3.0, 1.0])
+    asked = []
+
+    def regressor_of(theta):
+        asked.append(theta.copy())
+        return A
+
+    def problem(theta):
+        return "too big" if theta[0] > 1.5 else None
+
+    est = closed_loop_fit("iv", A, y, np.array([1.0, 1.0]), regressor_of, problem)
+    # 1 + 2 / 2: halved once, then at the boundary
+    assert max(t[0] for t in asked) == pytest.approx(1.5, abs=1e-9)
+    assert len(asked) == 2
+    assert est.shortened > 0 and not est.converged and "too big" in est.stopped
+    # the start itself outside: nothing simulated, the start returned, not converged
+    asked.clear()
+    est = closed_loop_fit("didim", A, y, np.array([2.0, 1.0]), regressor_of, problem)
+    assert not asked and not est.converged and "start" in est.stopped
+    np.testing.assert_array_equal(est.theta_, [2.0, 1.0])
+
+
+def test_a_diverging_closed_loop_is_one_line_and_the_rest_is_reported(quiet_log, monkeypatch):
+    """identify --method wls,iv,didim where every closed-loop simulation diverges (the pan
+    inertia of the test above, stepped once per tick): no traceback; one warning line per
+    method naming it, the run and the time; their columns marked not converged; WLS (the
+    verdict's method) reported as usual, exit 0."""
+    import guardid.closedloop.rows as rows
+    import guardid.closedloop.simulate as sim
+    import guardid.estimators as estimators
+
+    run = load_run(quiet_log)
+    free = [MODEL.base.names.index(n) for n in identified_names(GUARD)]
+
+    class SmallPanInertia(estimators.WeightedLeastSquares):
+        def fit(self, A, y):
+            super().fit(A, y)
+            theta = TRUTH.copy()
+            theta[free] = self.theta_
+            theta[ZZ1R] -= _pan_inertia(theta, float(run.q[0, 1])) - 0.01
+            self.theta_ = theta[free]
+            return self
+
+    monkeypatch.setattr(estimators, "WeightedLeastSquares", SmallPanInertia)
+    for module in (sim, rows):  # the old simulator: no physical check, one step per tick
+        monkeypatch.setattr(module, "stiffness_substeps", lambda *a: 1)
+    res = invoke("identify", quiet_log, "--method", "wls,iv,didim")
+    assert_ok_or_one_line(res, "diverging closed loop")
+    assert res.exit_code == 0, res.stderr
+    for method in ("iv", "didim"):
+        lines = [x for x in res.stderr.splitlines() if x.startswith(f"warning: {method}: ")]
+        assert len(lines) == 1, res.stderr
+        assert "diverged at t =" in lines[0] and "the run" in lines[0], lines[0]
+        assert f"{method.upper()} (not converged)" in res.stdout
+    assert "Traceback" not in res.stderr + res.stdout
+    head = next(x for x in res.stdout.splitlines() if x.startswith("parameter"))
+    assert head.split()[2] == "WLS"

@@ -13,24 +13,41 @@ motors and friction, the estimate's rigid body), conditioned like the measured r
 from __future__ import annotations
 
 from guardid.closedloop.fit import MAX_ITER, ClosedLoopEstimate, closed_loop_fit
-from guardid.closedloop.rows import ClosedLoopRuns, check_inputs, regressor_builder
+from guardid.closedloop.rows import (
+    ClosedLoopRuns,
+    check_inputs,
+    physical_check,
+    regressor_builder,
+)
 
 
 def fit_closed_loop(method, A, y, rows, inputs, description, model, free, flags):
     """(estimate, warnings) of ``method`` ('iv' | 'didim') on the measured rows A (M, n, b'),
     y (M, n) of :class:`~guardid.identify.rows.Rows` ``rows``; ``inputs`` = (runs, ticks,
-    setpoints, voltages), one entry per run; starts from WLS."""
+    setpoints, voltages), one entry per run; starts from WLS.
+
+    Never raises for a simulation that diverges or a parameter set that cannot be simulated:
+    the estimate is then marked not converged and one warning names the method, the run
+    and the time (``est.stopped``)."""
     from guardid.estimators import WeightedLeastSquares
 
     data = ClosedLoopRuns(*inputs)
     regressor_of = regressor_builder(data, description, model, free, rows, flags)
     start = WeightedLeastSquares().fit(A, y).theta_
-    est = closed_loop_fit(method, A, y, start, regressor_of)
+    problem = physical_check(data, description, model, free)
+    est = closed_loop_fit(method, A, y, start, regressor_of, problem)
     notes = []
-    if not est.converged:
+    if est.stopped:
+        shown = "the last solution" if est.iterations else "the WLS start"
+        notes.append(
+            f"{method}: stopped: {est.stopped}; {method.upper()} not converged, its column "
+            f"is {shown}, not a closed-loop estimate to trust"
+        )
+    elif not est.converged:
         notes.append(
             f"{method}: not converged after {MAX_ITER} closed-loop simulations (last step "
             f"{est.moves[-1]:.2g} std): its estimate and std are not final"
+            + (f" ({est.shortened} steps shortened to stay physical)" if est.shortened else "")
         )
     return est, notes
 

@@ -16,6 +16,14 @@ simulated regressor Z (M, n, b') on the measured rows. Rows are weighted per joi
 Both start from the WLS estimate; the next simulation uses theta + DAMPING (F(theta) -
 theta), F the solve on the last simulation; they stop when the step F(theta) - theta is
 below :data:`TOL_STD` of every parameter's std (at most :data:`MAX_ITER` simulations).
+
+Physical guard: a parameter set is simulated only when ``problem(theta)`` finds nothing
+wrong with it (:func:`guardid.closedloop.rows.physical_check`: a mass matrix positive
+definite where the motion goes, damping >= 0, a step the integrator takes stably); a
+damped step that leaves that set is halved (at most :data:`MAX_HALVINGS` times), so the
+iteration stays inside it. A simulation that still diverges, or a start outside the set,
+stops the iteration: the estimate is then the last solution (or the start) and
+``stopped`` says why, naming the run and the time.
 """
 
 from __future__ import annotations
@@ -27,6 +35,7 @@ import numpy as np
 from guardid.errors import GuardidError
 
 MAX_ITER = 10  #: closed-loop simulations at most
+MAX_HALVINGS = 8  #: halvings of a step that leaves the physical parameter sets
 DAMPING = {"iv": 1.0, "didim": 0.5}
 """Fraction of the step taken before the next simulation [-]. DIDIM's undamped iterates
 alternate (period 2, +-0.3-0.5 std on the tracking excitation: a loop that tracks a
@@ -50,6 +59,8 @@ class ClosedLoopEstimate:
     converged: bool
     moves: list = field(default_factory=list)  # max |step| / std per iteration [-]
     history_: None = None
+    stopped: str = ""  # why the iteration stopped early ('' when it did not)
+    shortened: int = 0  # steps halved to stay among physical parameter sets
 
     @property
     def std_(self) -> np.ndarray:
@@ -102,17 +113,29 @@ def ls_solve(Z, y, w):
     return iv_solve(Z, y, Z, w)
 
 
-def closed_loop_fit(method: str, A, y, theta0, regressor_of) -> ClosedLoopEstimate:
+def closed_loop_fit(method: str, A, y, theta0, regressor_of, problem=None) -> ClosedLoopEstimate:
     """``method`` 'iv' or 'didim' from ``theta0`` (p,) (the WLS estimate).
 
     ``regressor_of(theta)`` -> Z (M, n, p): the simulated closed loop's regressor on the
-    measured rows. A (M, n, p), y (M, n): the measured rows.
+    measured rows (GuardidError with ``time_s`` when the simulation diverged); A (M, n, p),
+    y (M, n): the measured rows; ``problem(theta)`` -> None or why ``theta`` cannot be
+    simulated (default: every set can).
     """
+    problem = problem or (lambda theta: None)
     theta = np.asarray(theta0, dtype=float)
     w = joint_weights(A, y, theta)
-    moves, converged, cov = [], False, None
-    for _ in range(MAX_ITER):
-        Z = regressor_of(theta)
+    moves, converged, new, cov, stopped, shortened = [], False, None, None, "", 0
+    why = problem(theta)
+    if why is not None:
+        stopped = f"the start (WLS) cannot be simulated: {why}"
+    for k in range(MAX_ITER if why is None else 0):
+        try:
+            Z = regressor_of(theta)
+        except GuardidError as exc:
+            if getattr(exc, "run", None) is None:  # not a simulation's divergence
+                raise
+            stopped = f"closed-loop simulation {k + 1} (estimate {k}): {exc}"
+            break
         if method == "iv":
             new, cov = iv_solve(A, y, Z, w)
             w = joint_weights(A, y, new)
@@ -125,7 +148,21 @@ def closed_loop_fit(method: str, A, y, theta0, regressor_of) -> ClosedLoopEstima
             converged = True
             theta = new
             break
-        theta = theta + DAMPING[method] * (new - theta)
-    if not converged:  # the last solution, the point its covariance describes
+        step = DAMPING[method] * (new - theta)
+        for _ in range(MAX_HALVINGS + 1):
+            why = problem(theta + step)
+            if why is None:
+                break
+            step = 0.5 * step
+            shortened += 1
+        if why is not None:
+            stopped = (f"every step from estimate {k} towards solution {k + 1} (down to "
+                       f"1/{2**MAX_HALVINGS} of it) cannot be simulated: {why}")  # fmt: skip
+            break
+        theta = theta + step
+    if new is None:  # no closed-loop solution: the start, with its weighted-LS covariance
+        cov = ls_solve(A, y, joint_weights(A, y, theta))[1]
+    elif not converged:  # the last solution, the point its covariance describes
         theta = new
-    return ClosedLoopEstimate(theta, cov, len(moves), converged, moves)
+    return ClosedLoopEstimate(theta, cov, len(moves), converged, moves, stopped=stopped,
+                              shortened=shortened)  # fmt: skip

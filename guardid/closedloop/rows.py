@@ -12,7 +12,14 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from guardid.closedloop.simulate import check_simulable, simulate
+from guardid.closedloop.simulate import (
+    MassBasis,
+    NotSimulable,
+    SimulationDiverged,
+    check_simulable,
+    simulate,
+    stiffness_substeps,
+)
 from guardid.errors import GuardidError
 from guardid.identify.rows import condition_run
 
@@ -50,6 +57,41 @@ def check_inputs(methods, description, setpoints, ticks) -> None:
         raise GuardidError(str(exc).replace("--method iv/didim", label)) from None
 
 
+class RunDiverged(GuardidError):
+    """The simulation of one run diverged or could not start: ``run`` (1-based), ``of``
+    runs, ``time_s`` [s] from the run's first row (None: refused before the first step)."""
+
+    def __init__(self, run: int, of: int, exc: GuardidError) -> None:
+        self.run, self.of = run, of
+        self.time_s = getattr(exc, "time_s", None)
+        where = f"run {run} of {of}" if of > 1 else "the run"
+        super().__init__(f"{where}: {exc}")
+
+
+def _full(model, free, theta_free):
+    theta = model.base.values(model.params).copy()
+    theta[free] = theta_free
+    return theta
+
+
+def physical_check(data: ClosedLoopRuns, description, model, free):
+    """``problem(theta_free)`` -> None, or why the closed loop cannot be simulated with it:
+    :func:`~guardid.closedloop.simulate.stiffness_substeps` at every measured position and
+    setpoint of every run (the places the simulated motion goes)."""
+    visited = MassBasis(model, np.vstack([np.asarray(x, dtype=float)
+                                          for run, sp in zip(data.runs, data.setpoints, strict=True)
+                                          for x in (run[1], sp)]))  # fmt: skip
+
+    def problem(theta_free):
+        try:
+            stiffness_substeps(description, model, _full(model, free, theta_free), visited)
+        except NotSimulable as exc:
+            return str(exc)
+        return None
+
+    return problem
+
+
 def regressor_builder(data: ClosedLoopRuns, description, model, free, rows, flags):
     """``regressor_of(theta_free)`` -> Z (M, n, b') on ``rows``' kept rows (see module).
 
@@ -72,9 +114,12 @@ def regressor_builder(data: ClosedLoopRuns, description, model, free, rows, flag
         theta = base.copy()
         theta[free] = theta_free
         parts = []
-        for run, tk, sp, (q0, qd0, u0) in zip(data.runs, data.ticks, data.setpoints, starts,
-                                             strict=True):  # fmt: skip
-            q_sim = simulate(description, model, theta, tk, sp, q0, qd0, u0)
+        for k, (run, tk, sp, (q0, qd0, u0)) in enumerate(zip(data.runs, data.ticks, data.setpoints,
+                                                             starts, strict=True)):  # fmt: skip
+            try:
+                q_sim = simulate(description, model, theta, tk, sp, q0, qd0, u0)
+            except (SimulationDiverged, NotSimulable) as exc:
+                raise RunDiverged(k + 1, len(data.runs), exc) from None
             t, _, effort, *_ = run
             _, A_all, *_ = condition_run(
                 (t, q_sim, effort), description, used, used.cutoff_hz, *flags, model, free,

@@ -24,8 +24,33 @@ from guardid.protocol import ENUMS, Encoder
 from guardid.protocol import MESSAGES as M
 
 SUBSTEPS = 1
-"""Plant RK4 steps per 15 ms tick (the fake port's default; see guardid.plant.plant)."""
+"""Plant RK4 steps per 15 ms tick at least (the fake port's default; see guardid.plant.plant);
+more when the estimate's inertia makes the motor's damping stiff (:func:`stiffness_substeps`)."""
+MAX_SUBSTEPS = 4
+"""Above this many RK4 steps per tick the estimate's inertia is refused as too small to be a
+robot's: one 15 ms step is stable down to an effective inertia of 0.072 kg m^2 on the guard's
+pan and 0.27 on its tilt, four steps down to a quarter of that (0.018 and 0.068, 2-3 % of the
+real ones); each step costs a simulation's time."""
+RK4_STABLE = 2.0
+"""h lambda kept below this on the negative real axis [-]: classical RK4 is stable up to
+2.785 there (|1 + z + z^2/2 + z^3/6 + z^4/24| <= 1); 2.0 leaves a margin for the coupling."""
+RUNAWAY_FACTOR = 10.0
+"""A joint faster than this many times its motor's no-load speed at full supply (supply / Ke
+of the joint) is a runaway: no motor of the description drives it there [-]."""
 FRICTION_PREFIXES = ("Fv", "Fc", "Fo", "Fs")
+
+
+class SimulationDiverged(GuardidError):
+    """The closed-loop simulation left the physical: a non-finite state or a runaway speed.
+    ``time_s`` [s] from the run's first row, ``reason`` one phrase."""
+
+    def __init__(self, reason: str, time_s: float) -> None:
+        super().__init__(f"diverged at t = {time_s:.3f} s ({reason})")
+        self.reason, self.time_s = reason, float(time_s)
+
+
+class NotSimulable(GuardidError):
+    """A parameter set the closed loop cannot be simulated with (one phrase: why)."""
 
 
 class BaseDynamics:
@@ -84,6 +109,112 @@ def estimated_description(description, names, theta):
     return replace(description, joints=tuple(joints))
 
 
+def effective_inertia_terms(description, names, theta):
+    """(a [kg m^2] (n,), c [N m s/rad] (n,)) per joint: the plant's inertia correction
+    kt tau_e ke / R, subtracted from M's diagonal, and its velocity damping kt ke / R + Fv
+    with the estimate's Fv (see guardid.plant.plant)."""
+    from guardid.plant.joints import joint_constants
+
+    value = dict(zip(names, (float(x) for x in theta), strict=True))
+    consts = joint_constants(estimated_description(description, names, theta), True, True)
+    a = np.array([jc.kt * jc.tau_e * jc.ke / jc.r if jc.driven else 0.0 for jc in consts])
+    c = np.array([(jc.kt * jc.ke / jc.r if jc.driven else 0.0) + value.get(f"Fv{k + 1}", jc.fv)
+                  for k, jc in enumerate(consts)])  # fmt: skip
+    return a, c
+
+
+class MassBasis:
+    """M(q) of every base parameter at fixed positions ``q_rad`` (N, n) [rad]: M(q) for any
+    ``theta`` is ``at(theta)`` (N, n, n) [kg m^2] (M is linear in the base parameters;
+    friction columns left out as in :class:`BaseDynamics`)."""
+
+    def __init__(self, model, q_rad) -> None:
+        self.q = np.atleast_2d(np.asarray(q_rad, dtype=float))
+        zero = np.zeros_like(self.q)
+        rest = model.base_regressor(self.q, zero, zero)
+        cols = []
+        for i in range(model.n_dof):
+            e = zero.copy()
+            e[:, i] = 1.0
+            cols.append(model.base_regressor(self.q, zero, e) - rest)
+        self.basis = np.stack(cols, axis=2)  # (N, n, n, b)
+        names = tuple(model.base.names)
+        self.keep = np.array([not n.startswith(FRICTION_PREFIXES) for n in names])
+
+    def at(self, theta) -> np.ndarray:
+        return self.basis @ np.where(self.keep, np.asarray(theta, dtype=float), 0.0)
+
+
+def stiffness_substeps(description, model, theta, visited) -> int:
+    """RK4 steps per tick that keep the simulation stable with ``theta`` at the joint
+    positions the motion visits, ``visited`` (N, n) [rad] or their :class:`MassBasis`;
+    NotSimulable when the effective mass
+    matrix M(q) - diag(a) is not positive definite at one of them (a negative or zero inertia:
+    no physical robot, the simulation would run away), when a joint's damping is negative
+    (friction that gives energy), or when more than :data:`MAX_SUBSTEPS` would be needed.
+
+    Stiffness: the largest eigenvalue of (M - diag(a))^-1 diag(c) (the motors' back-EMF and
+    viscous damping over the inertia) times the tick must stay below :data:`RK4_STABLE`."""
+    names = tuple(model.base.names)
+    a, c = effective_inertia_terms(description, names, theta)
+    basis = visited if isinstance(visited, MassBasis) else MassBasis(model, visited)
+    q = basis.q
+    m = basis.at(theta) - np.diag(a)[None]
+    m = 0.5 * (m + np.swapaxes(m, 1, 2))
+    low = np.linalg.eigvalsh(m)[:, 0]
+    if not np.all(np.isfinite(low)):
+        raise NotSimulable("mass matrix not finite")
+    k = int(np.argmin(low))
+    if low[k] <= 0.0:
+        where = ", ".join(f"{np.degrees(x):.1f}" for x in q[k])
+        raise NotSimulable(
+            f"mass matrix not positive definite at q = ({where}) deg, smallest eigenvalue "
+            f"{low[k]:.3g} kg m^2: a negative inertia"
+        )
+    if np.any(c < 0.0):
+        j = int(np.argmin(c))
+        raise NotSimulable(f"joint {j + 1}'s damping {c[j]:.3g} N m s/rad is negative")
+    root = np.sqrt(c)  # M^-1 C has the eigenvalues of the symmetric C^1/2 M^-1 C^1/2
+    sym = root[None, :, None] * np.linalg.inv(m) * root[None, None, :]
+    lam = float(np.linalg.eigvalsh(sym)[:, -1].max())
+    n = max(SUBSTEPS, math.ceil(float(description.sample_period) * lam / RK4_STABLE))
+    if n > MAX_SUBSTEPS:
+        raise NotSimulable(
+            f"an inertia too small to simulate ({n} RK4 steps per tick needed, damping over "
+            f"inertia {lam:.3g} 1/s)"
+        )
+    return n
+
+
+class GuardedPlant(Plant):
+    """The plant, stopped before its sensors read a non-finite or runaway state
+    (:class:`SimulationDiverged`); ``max_speed`` (n,) [rad/s]."""
+
+    def __init__(self, *args, max_speed, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._max_speed = [float(x) for x in max_speed]
+
+    def step_sensors(self, u):
+        """As :meth:`Plant.step_sensors`, checking the state between integration and ADC."""
+        parts = self._integrate(u)
+        for j, (x, v) in enumerate(zip(self._q, self._qd, strict=True)):
+            if not (math.isfinite(x) and math.isfinite(v)):
+                raise SimulationDiverged(f"joint {j + 1} state not finite", self._tick * self.dt)
+            if abs(v) > self._max_speed[j]:
+                raise SimulationDiverged(
+                    f"joint {j + 1} at {v:.3g} rad/s, beyond {RUNAWAY_FACTOR:g} x its motor's "
+                    "no-load speed",
+                    self._tick * self.dt,
+                )
+        return self._measure(*parts)[:3]
+
+
+def runaway_speeds(description) -> np.ndarray:
+    """Per joint [rad/s]: :data:`RUNAWAY_FACTOR` x supply / (Ke N) (no-load joint speed)."""
+    return np.array([RUNAWAY_FACTOR * j.drive.supply_voltage / (j.drive.ke * j.drive.gear_ratio)
+                     for j in description.joints])  # fmt: skip
+
+
 def check_simulable(description) -> None:
     """One-line GuardidError unless every joint has a drive, an encoder and ``pid:``."""
     where = getattr(description, "source", "") or description.name
@@ -111,12 +242,20 @@ def simulate(description, model, theta, ticks, setpoint_rad, q0_rad, qd0, u0_v=N
     setpoints (held over unlogged ticks); the simulation starts at the first row from
     ``q0_rad`` (n,) [rad] and ``qd0`` (n,) [rad/s] with the PID's last output ``u0_v`` (n,)
     [V] (the voltage the log reports for the next period; its integral is set to give it).
+
+    NotSimulable before any step when ``theta`` is not a physical robot's where the motion
+    goes (:func:`stiffness_substeps` at the setpoints and the start); SimulationDiverged
+    (with its time) when the state turns non-finite or runs away, before the simulated
+    sensors read it.
     """
     check_simulable(description)
     names = tuple(model.base.names)
+    visited = np.vstack([np.asarray(setpoint_rad, dtype=float), np.asarray(q0_rad, dtype=float)])
+    substeps = stiffness_substeps(description, model, theta, visited)
     plant_desc = estimated_description(description, names, theta)
-    plant = Plant(plant_desc, model=BaseDynamics(model, theta), noise=False,
-                  substeps=SUBSTEPS, q0=list(q0_rad), qd0=list(qd0))  # fmt: skip
+    plant = GuardedPlant(plant_desc, model=BaseDynamics(model, theta), noise=False,
+                         substeps=substeps, q0=list(q0_rad), qd0=list(qd0),
+                         max_speed=runaway_speeds(description))  # fmt: skip
     fw = FirmwareEmulator(description, plant)
     counts0 = list(plant.counts())
     fw.counts = list(counts0)  # the firmware has read the encoders at the first row
@@ -146,9 +285,4 @@ def simulate(description, model, theta, ticks, setpoint_rad, q0_rad, qd0, u0_v=N
         if rel[row] == k:
             out[row] = plant.state.q
             row += 1
-    if not np.all(np.isfinite(out)):
-        raise GuardidError(
-            "--method iv/didim: the closed-loop simulation with the current estimate "
-            "diverged (non-finite motion): the estimate is far from a physical robot"
-        )
     return out
