@@ -32,7 +32,9 @@ from guardid.log import read_log
 from guardid.plant import make_plant
 from guardid.robot import load_robot
 
-DEFAULT_VARIANTS = "noise=1;phase=1;start=50;supply=0.02;ripple=0.01;start=50&supply=0.02&ripple=0.01"
+DEFAULT_VARIANTS = (
+    "noise=1;phase=1;start=50;supply=0.02;ripple=0.01;start=50&supply=0.02&ripple=0.01"
+)
 
 
 class RecordingPlant:
@@ -147,7 +149,7 @@ def main() -> None:
             st = compare(runs, per_rad, description.sample_period, a.smooth)
             med, lo, hi = np.median(st, axis=0), st.min(axis=0), st.max(axis=0)
 
-            def cell(i, fmt):
+            def cell(i, fmt, med=med, lo=lo, hi=hi):
                 return f"{med[i]:{fmt}} ({lo[i]:{fmt}}..{hi[i]:{fmt}})"
 
             print(f"{variant:36s} | {cell(0, '.0f')} / {cell(1, '.0f')} / {cell(2, '.0f')} | "
