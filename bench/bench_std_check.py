@@ -19,7 +19,7 @@ parameter's |bias|/std and spread/std inside the band that an unbiased method wi
 std stays within in 95 % of checks at that seed count (:func:`chance_bands`; at 40 seeds and
 12 parameters |bias| <= 0.49, spread/std in [0.67, 1.36]).
 
-    nice -n 10 python bench/bench_std_check.py [--sets default60,schroeder1200 | all]
+    nice -n 10 python bench/bench_std_check.py [--sets default60,schroeder1200:20 | all]
         [--seeds 40] [--first-seed 5000] [--jobs 2] [--methods wls] [--keep DIR [--reuse]
         [--reuse-params]] [--capture-only] [--port-options start=50&supply=0.02&ripple=0.01]
         [--cutoff HZ]
@@ -125,11 +125,13 @@ def run_job(job: Job):
     robot = str(Path(job.s.robot).resolve()) if job.s.robot.endswith(".yaml") else job.s.robot
     port = f"sim://{robot}?seed={job.seed}" + (f"&{job.port_options}" if job.port_options else "")
     if not (job.reuse and log.exists()):
+        part = log.with_suffix(".part")  # renamed when complete: a killed run leaves no log
         err = _guardid("capture", "--trajectory", str(job.traj), "--robot", job.s.robot,
                        "--duration", f"{job.s.duration_s:g}", "--port", port, "--quiet",
-                       "--force", "-o", str(log))  # fmt: skip
+                       "--force", "-o", str(part))  # fmt: skip
         if err:
             return job.seed, None, f"capture: {err}"
+        part.rename(log)
     if not job.identify:
         return job.seed, None, None
     if not (job.reuse_params and params.exists()):
@@ -236,7 +238,7 @@ def report(name: str, s: Set, results, errors, truth, port_options: str) -> list
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sets", default="default60,tracking60",
-                    help=f"comma-separated, or 'all': {', '.join(SETS)}")  # fmt: skip
+                    help=f"comma-separated NAME[:SEEDS], or 'all': {', '.join(SETS)}")  # fmt: skip
     ap.add_argument("--seeds", type=int, default=40, help="number of seeds")
     ap.add_argument("--first-seed", type=int, default=5000, help="seeds FIRST..FIRST+N-1")
     ap.add_argument("--jobs", type=int, default=2, help="captures and identifies at once")
@@ -252,13 +254,15 @@ def main() -> None:
     ap.add_argument("--cutoff", type=float, default=None,
                     help="identify --cutoff HZ (default: chosen from the data)")  # fmt: skip
     a = ap.parse_args()
-    names = list(SETS) if a.sets == "all" else a.sets.split(",")
-    unknown = [n for n in names if n not in SETS]
+    wanted = [w.partition(":") for w in (list(SETS) if a.sets == "all" else a.sets.split(","))]
+    unknown = [n for n, _, k in wanted if n not in SETS or (k and not k.isdigit())]
     if unknown:
-        ap.error(f"--sets: unknown {', '.join(unknown)} (known: {', '.join(SETS)}, all)")
+        ap.error(f"--sets: unknown {', '.join(unknown)} (known: {', '.join(SETS)}, all;"
+                 " NAME:SEEDS for fewer seeds)")  # fmt: skip
+    names = [n for n, _, _ in wanted]
+    n_seeds = {n: int(k) if k else a.seeds for n, _, k in wanted}
     reuse = a.reuse and a.keep is not None
     extra = ("--cutoff", f"{a.cutoff:g}") if a.cutoff else ()
-    seeds = range(a.first_seed, a.first_seed + a.seeds)
     summary: list[str] = []
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(a.keep) if a.keep else Path(tmp)
@@ -266,8 +270,11 @@ def main() -> None:
         trajs = {n: trajectory(work, SETS[n], reuse) for n in names}
         jobs = [Job(n, SETS[n], seed, trajs[n], work, a.port_options, a.methods, extra, reuse,
                     a.reuse_params and reuse, not a.capture_only)
-                for n in names for seed in seeds]  # fmt: skip
-        pending = {n: len(seeds) for n in names}
+                for n in names for seed in range(a.first_seed, a.first_seed + n_seeds[n])
+                ]  # fmt: skip
+        # short captures first; sets of one length take turns seed by seed
+        jobs.sort(key=lambda j: (j.s.duration_s, j.seed, names.index(j.name)))
+        pending = {n: n_seeds[n] for n in names}
         results: dict[str, dict] = {n: {} for n in names}
         errors: dict[str, dict] = {n: {} for n in names}
         lock = threading.Lock()
@@ -282,8 +289,8 @@ def main() -> None:
                 pending[job.name] -= 1
                 if pending[job.name] == 0:
                     if a.capture_only:
-                        print(f"{job.name}: {len(seeds) - len(errors[job.name])} logs captured"
-                              f" in {work}", flush=True)  # fmt: skip
+                        ok = n_seeds[job.name] - len(errors[job.name])
+                        print(f"{job.name}: {ok} logs captured in {work}", flush=True)
                         return
                     truth = truth_values(job.s.robot)
                     summary.extend(report(job.name, job.s, results[job.name], errors[job.name],
