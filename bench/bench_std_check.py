@@ -34,11 +34,10 @@ short ones first).
 from __future__ import annotations
 
 import argparse
-import subprocess
-import sys
+import contextlib
+import io
 import tempfile
-import threading
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -76,12 +75,31 @@ for _length in (300, 1200):
 
 
 def _guardid(*args: str) -> str | None:
-    """Run ``guardid ARGS``; None when it succeeded, else its last error line."""
-    res = subprocess.run([sys.executable, "-m", "guardid", *args], capture_output=True, text=True)
-    if res.returncode == 0:
+    """Run ``guardid ARGS`` (its command line, in this process: the worker processes import
+    guardid once, which is most of a 60 s capture's CPU time); None when it succeeded, else
+    its last error line."""
+    from guardid.cli import main as guardid_main
+
+    err = io.StringIO()
+    code: object = 0
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+        try:
+            guardid_main(list(args), standalone_mode=False)
+        except SystemExit as exc:
+            code = exc.code or 0
+        except Exception as exc:  # a traceback in guardid: report it as this seed's failure
+            code = f"{type(exc).__name__}: {exc}"
+    if code == 0:
         return None
-    lines = res.stderr.strip().splitlines() or [f"exit {res.returncode}"]
-    return f"exit {res.returncode}: {lines[-1][-300:]}"
+    lines = err.getvalue().strip().splitlines() or [f"{code}"]
+    return f"exit {code}: {lines[-1][-300:]}"
+
+
+def _warm() -> None:
+    """Worker initialiser: import what capture and identify need once per process."""
+    import guardid.cli
+    import guardid.commands.capture
+    import guardid.commands.identify  # noqa: F401
 
 
 def truth_values(robot: str) -> dict[str, float]:
@@ -277,26 +295,25 @@ def main() -> None:
         pending = {n: n_seeds[n] for n in names}
         results: dict[str, dict] = {n: {} for n in names}
         errors: dict[str, dict] = {n: {} for n in names}
-        lock = threading.Lock()
 
         def done(job: Job, outcome) -> None:
             seed, res, err = outcome
-            with lock:
-                if err:
-                    errors[job.name][seed] = err
-                elif res is not None:
-                    results[job.name][seed] = res
-                pending[job.name] -= 1
-                if pending[job.name] == 0:
-                    if a.capture_only:
-                        ok = n_seeds[job.name] - len(errors[job.name])
-                        print(f"{job.name}: {ok} logs captured in {work}", flush=True)
-                        return
-                    truth = truth_values(job.s.robot)
-                    summary.extend(report(job.name, job.s, results[job.name], errors[job.name],
-                                          truth, a.port_options))  # fmt: skip
+            if err:
+                errors[job.name][seed] = err
+            elif res is not None:
+                results[job.name][seed] = res
+            pending[job.name] -= 1
+            if pending[job.name] > 0:
+                return
+            if a.capture_only:
+                ok = n_seeds[job.name] - len(errors[job.name])
+                print(f"{job.name}: {ok} logs captured in {work}", flush=True)
+                return
+            truth = truth_values(job.s.robot)
+            summary.extend(report(job.name, job.s, results[job.name], errors[job.name], truth,
+                                  a.port_options))  # fmt: skip
 
-        with ThreadPoolExecutor(max_workers=max(1, a.jobs)) as pool:
+        with ProcessPoolExecutor(max_workers=max(1, a.jobs), initializer=_warm) as pool:
             futures = [(job, pool.submit(run_job, job)) for job in jobs]
             for job, fut in futures:
                 done(job, fut.result())
