@@ -3,7 +3,24 @@
 ``sim://<robot name or YAML path>?seed=1&pacing=lockstep|realtime|<factor>&noise=1|0
 &payload_time=30&payload_mass=1.0&payload_com=0.12,0.02,0&drop=1e-4&flip=1e-5
 &latency_ms=16&disconnect_s=40&firmware=py|c|avr&mcu=atmega328p|atmega2560&upstream=0|1
-&phase=0|1``
+&phase=0|1&start=COUNTS&supply=FRACTION&ripple=FRACTION``
+
+What a real robot's repeated runs vary, drawn from ``seed`` (each from its own stream, so the
+sensor noise draws stay those of the same seed without them):
+
+* ``phase=1``: each joint starts at a random point within its first encoder count;
+* ``start=C``: each joint starts at a random point within +-C encoder counts of zero
+  (real-valued, so the encoder phase too; clipped into the joint's limits; not with phase=1);
+* ``supply=F``: the supply voltage of this run is the robot's nominal one times (1 + u), u
+  uniform in [-F, F] (a bench supply's setting, a battery's charge);
+* ``ripple=F``: and varies from tick to tick by a factor (1 + F z), z standard normal, the
+  same for every motor (other loads on the supply).
+
+The PID closes on counts and the sensors' noise does not enter the loop, so without
+``supply`` or ``ripple`` the simulated robot is deterministic apart from its start, which
+the loop forgets: seeds then share most of their motion and quantisation error. The motor
+voltage that ``supply``/``ripple`` change is what the voltage sensor measures, and the
+current follows it: the identification's equation holds exactly as without them.
 """
 
 from __future__ import annotations
@@ -18,7 +35,9 @@ from guardid.fakeport.faults import FaultConfig
 
 
 class SimUrlError(LinkError, ValueError):
-    """A ``sim://`` URL or fake-port option is invalid (names the option)."""
+    """A ``sim://`` URL or fake-port option is invalid (names the option): bad input, exit 2."""
+
+    exit_code = 2
 
 
 @dataclass(frozen=True)
@@ -35,6 +54,9 @@ class SimOptions:
     firmware: str = "py"
     mcu: str = "atmega328p"  # firmware=avr: the simulated microcontroller
     phase: bool = False  # start each joint at a seeded random point within one encoder count
+    start: float = 0.0  # [counts] start each joint at a seeded point within +-start counts
+    supply: float = 0.0  # per-run supply voltage within +-supply of nominal (fraction)
+    ripple: float = 0.0  # per-tick supply ripple, std as a fraction of the supply
     faults: FaultConfig = field(default_factory=FaultConfig)
 
     @property
@@ -115,6 +137,9 @@ _PARSERS: dict[str, Callable[[str], object]] = {
     "mcu": _mcu,
     "upstream": _bool,
     "phase": _bool,
+    "start": _float(0.0),
+    "supply": _float(0.0, hi=0.5),
+    "ripple": _float(0.0, hi=0.2),
 }
 OPTION_NAMES = tuple(_PARSERS)
 
@@ -142,6 +167,8 @@ def parse_options(
     )
     if "mcu" in values and values.get("firmware") != "avr":
         raise SimUrlError(f"{label('mcu')}: only with firmware=avr")
+    if values.get("start") and values.get("phase"):
+        raise SimUrlError(f"{label('start')}: not with phase=1 (start includes the encoder phase)")
     return SimOptions(robot=robot or "guard", faults=faults, **values)
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import serial
 
-from guardid.errors import LinkError
+from guardid.errors import GuardidError, LinkError
 
 DEFAULT_PORT = "sim://guard"
 _IN_USE = (errno.EAGAIN, errno.EWOULDBLOCK, errno.EBUSY)
@@ -21,7 +21,7 @@ def open_port(url: str = DEFAULT_PORT, baud: int = 115200, timeout_s: float = 0.
     that every guardid process and other pyserial programs asking for it respect); URL
     handlers (``sim://``, ``socket://``, ...) have no lock and are opened as they are.
     Raises :class:`LinkError` naming the port when it cannot be opened, saying so when
-    another program holds it.
+    another program holds it; a bad ``sim://`` option is bad input (exit 2), naming it.
     """
     if url.startswith("sim://"):
         import guardid.fakeport  # noqa: F401  (registers the sim:// handler)
@@ -37,6 +37,8 @@ def open_port(url: str = DEFAULT_PORT, baud: int = 115200, timeout_s: float = 0.
                 "close the other program and retry"
             ) from None
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if getattr(exc, "exit_code", None) == GuardidError.exit_code:  # a bad sim:// option
+            raise GuardidError(f"port {url}: {reason}") from None
         raise LinkError(f"port {url}: cannot open: {reason}") from None
 
 

@@ -10,6 +10,7 @@ documented in :mod:`guardid.plant.plant`; sensors in :mod:`guardid.plant.sensors
 from guardid.plant.joints import PlantError
 from guardid.plant.payload import PayloadChange
 from guardid.plant.plant import DEFAULT_SUBSTEPS, Plant, PlantState, SensorSample, make_plant
+from guardid.plant.variation import SupplyVariation, start_pose_q0
 
 __all__ = [
     "DEFAULT_SUBSTEPS",
@@ -18,5 +19,7 @@ __all__ = [
     "PlantError",
     "PlantState",
     "SensorSample",
+    "SupplyVariation",
     "make_plant",
+    "start_pose_q0",
 ]

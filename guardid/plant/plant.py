@@ -37,6 +37,7 @@ from guardid.plant.fast2r import fit_two_revolute, generic_two
 from guardid.plant.joints import PlantError, joint_constants
 from guardid.plant.payload import payload_params
 from guardid.plant.sensors import adc_quantise, pwm_quantise
+from guardid.plant.variation import SupplyVariation, start_pose_q0
 
 DEFAULT_SUBSTEPS = 1
 """RK4 sub-steps per tick. One step per 15 ms tick keeps q within ~1e-7 rad of a tight
@@ -90,11 +91,14 @@ class Plant:
     ``q0``/``qd0``, ``friction``/``limits`` (False drops them), ``open_circuit`` (motors
     disconnected: no current, rotor inertia still reflected), ``fast`` ('auto': fitted 2R
     evaluator if it verifies, else the model's mass_matrix_1/bias_1; False: always generic).
+    ``supply`` (:class:`~guardid.plant.variation.SupplyVariation`; None: nominal): the motors
+    see the PWM voltage times the supply's factor of the tick; the voltage sensor measures that.
     """
 
     def __init__(self, robot, *, model=None, seed: int = 0, noise: bool = True, payload=(),
                  substeps: int = DEFAULT_SUBSTEPS, q0=None, qd0=None, friction: bool = True,
-                 limits: bool = True, open_circuit: bool = False, fast="auto"):  # fmt: skip
+                 limits: bool = True, open_circuit: bool = False, fast="auto",
+                 supply=None):  # fmt: skip
         if isinstance(robot, str) or hasattr(robot, "__fspath__"):
             from guardid.robot import load_robot
 
@@ -148,6 +152,7 @@ class Plant:
         # per joint: (driven, kt, r, open circuit, supply [V], PWM bits)
         self._drive = [(jc.driven, jc.kt, jc.r, self.open_circuit, jc.supply, jc.pwm_bits)
                        for jc in self.joints]  # fmt: skip
+        self._supply = supply.factors(seed) if supply is not None and supply.active else None
         self._c1 = None
         self._configure([0.0, 0.0])
 
@@ -402,8 +407,9 @@ class Plant:
         t0 = self._tick * T
         applied = []
         last_sign = self._last_sign
+        factor = next(self._supply) if self._supply is not None else 1.0
         for j, ((driven, _, _, _, supply, bits), x) in enumerate(zip(self._drive, u, strict=True)):
-            x = pwm_quantise(float(x), supply, bits) if driven else float(x)
+            x = pwm_quantise(float(x), supply, bits) * factor if driven else float(x)
             applied.append(x)
             if x != 0.0:
                 last_sign[j] = 1.0 if x > 0 else -1.0
@@ -536,7 +542,8 @@ def encoder_phase_q0(description, seed: int) -> list[float]:
 
 def make_plant(description, options) -> Plant:
     """Plant for the fake port from its options (seed, noise, payload_time/mass/com, phase:
-    :func:`encoder_phase_q0`)."""
+    :func:`encoder_phase_q0`, start: :func:`start_pose_q0`, supply and ripple:
+    :class:`SupplyVariation`)."""
     from guardid.plant.payload import PayloadChange
 
     payload = ()
@@ -544,4 +551,8 @@ def make_plant(description, options) -> Plant:
         payload = (PayloadChange(options.payload_time, options.payload_mass,
                                  tuple(options.payload_com)),)  # fmt: skip
     q0 = encoder_phase_q0(description, options.seed) if getattr(options, "phase", False) else None
-    return Plant(description, seed=options.seed, noise=options.noise, payload=payload, q0=q0)
+    if getattr(options, "start", 0.0):
+        q0 = start_pose_q0(description, options.seed, options.start)
+    supply = SupplyVariation(getattr(options, "supply", 0.0), getattr(options, "ripple", 0.0))
+    return Plant(description, seed=options.seed, noise=options.noise, payload=payload, q0=q0,
+                 supply=supply)  # fmt: skip
