@@ -234,6 +234,10 @@ def identify(
     if cv:
         _cross_validate(logs, runs, description, methods, options, current_units, beta, lam, eta)
         return
+    from guardid.identify.segments import split_runs
+
+    whole, split = runs, split_runs(runs, cutoff, _highest_harmonic(log, run))
+    runs = split.runs  # long gaps split a run: its segments are conditioned as runs are
     arrays = _arrays(runs)
     forked = None  # the tracker's replay on another core while the batch fit runs
     if plot_path is None and report_path is None:
@@ -248,6 +252,7 @@ def identify(
         highest_harmonic_hz=_highest_harmonic(log, run), qd=arrays["qd"],
         setpoints=arrays["setpoint"],
     )  # fmt: skip
+    result.warnings[:0] = split.lines(result.cutoff_hz)
     if result.untrusted and not force:
         raise UntrustedResult(
             f"{log}: identification cannot be trusted: {'; '.join(result.untrusted)} "
@@ -316,7 +321,7 @@ def identify(
         from guardid.report import write_report
         from guardid.report.cli import identify_page
 
-        page = identify_page(result, description, runs, logs, cond, A, y, tracker)
+        page = identify_page(result, description, whole, logs, cond, A, y, tracker)
         write_report(report_path, page, inputs_paths=logs)
         click.echo(f"report written to {report_path}")
     status.done("identify: done")

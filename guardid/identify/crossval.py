@@ -1,9 +1,12 @@
 """``guardid identify --cv``: leave-one-run-out cross-validation over the given runs.
 
-Each run is held out once: the others are identified together (default conditioning, the
-cut-off chosen from them alone), and every method's estimate predicts the held-out run's
-effort under that same conditioning. The score is the stacked relative rms error over all
-joints, rms(tau - tau_model) / rms(tau) (:mod:`guardid.identify.validation`).
+Each run (log file) is held out once: the others are identified together (default
+conditioning, the cut-off chosen from them alone), and every method's estimate predicts the
+held-out run's effort under that same conditioning. A run split at a long gap
+(:mod:`guardid.identify.segments`) stays one fold: its segments are conditioned separately
+and held out together (segments of one recording are not independent of each other). The
+score is the stacked relative rms error over all joints, rms(tau - tau_model) / rms(tau)
+(:mod:`guardid.identify.validation`).
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ import numpy as np
 
 from guardid.identify.pipeline import identify
 from guardid.identify.rows import stacked_rows
+from guardid.identify.segments import split_runs
 from guardid.identify.validation import ParameterSet, _run_tuple, score_sets
 
 
@@ -22,6 +26,7 @@ def fold_scores(runs, description, methods, options, *, current_units=False, set
     out = []
     for i, held in enumerate(runs):
         train = [r for k, r in enumerate(runs) if k != i]
+        train = split_runs(train, options.cutoff_hz).runs  # long gaps: segments as runs
         qd = [getattr(r, "qd", None) for r in train]
         loop = {}  # iv / didim: the closed loop's inputs, when every training run has them
         closed = ("setpoints", "setpoint"), ("ticks", "ticks"), ("voltage_v", "voltage")
@@ -40,13 +45,28 @@ def fold_scores(runs, description, methods, options, *, current_units=False, set
             values = _all_base_values(description, nominal)
             values.update(dict(zip(result.names, result.results[m].theta, strict=True)))
             sets.append(ParameterSet(m.upper(), values, description))
-        cond = stacked_rows(
-            [_run_tuple(held)], description, result.conditioning,
-            in_current_units=current_units, effort_is_torque=torque,
-        ).cond  # fmt: skip
-        scores = score_sets([cond], sets, [held.path], current_units)
-        out.append((result.conditioning.cutoff_hz, {s.label.lower(): s.stacked for s in scores}))
+        parts = split_runs([held], result.conditioning.cutoff_hz).runs
+        conds = [
+            stacked_rows(
+                [_run_tuple(part)], description, result.conditioning,
+                in_current_units=current_units, effort_is_torque=torque,
+            ).cond
+            for part in parts
+        ]  # fmt: skip
+        scores = score_sets(conds, sets, [p.path for p in parts], current_units)
+        out.append((result.conditioning.cutoff_hz, _stacked_per_set(scores)))
     return out
+
+
+def _stacked_per_set(scores) -> dict:
+    """{method: stacked relative rms error [-]} over every scored run (segments of one
+    held-out file pooled: sum of squared residuals over sum of squared efforts)."""
+    num, den = {}, {}
+    for s in scores:
+        key = s.label.lower()
+        num[key] = num.get(key, 0.0) + s.stacked**2 * s.ref2
+        den[key] = den.get(key, 0.0) + s.ref2
+    return {k: float(np.sqrt(num[k] / den[k])) if den[k] > 0 else float("nan") for k in num}
 
 
 def _all_base_values(description, identified):
