@@ -245,8 +245,11 @@ def identify(
 
         forked = start_tracking(run, description, methods, lam, beta, log_path=log)
     status.stage("conditioning and fitting")
-    result = run_identify(
-        arrays["t"], arrays["q"], arrays["current"], description, methods=methods,
+    from guardid.identify.checks import call_naming_logs
+
+    result = call_naming_logs(
+        logs, run_identify, arrays["t"], arrays["q"], arrays["current"], description,
+        methods=methods,
         conditioning=options, beta=beta, lam=lam, gradient_eta=eta, voltage_v=arrays["voltage"],
         ticks=arrays["ticks"], in_current_units=current_units, effort_is_torque=run.torque,
         highest_harmonic_hz=_highest_harmonic(log, run), qd=arrays["qd"],

@@ -16,7 +16,7 @@ import os
 
 import numpy as np
 
-from guardid.errors import ConfigError
+from guardid.errors import ConfigError, GuardidError
 
 
 def _joints(description) -> tuple[str, ...]:
@@ -148,3 +148,22 @@ def check_cutoff(cutoff_hz, runs) -> None:
                 f"--cutoff: {cutoff_hz:g} Hz is not below {run.path}'s Nyquist frequency "
                 f"{nyquist:.4g} Hz"
             )
+
+
+def naming_logs(exc: GuardidError, logs) -> GuardidError:
+    """``exc`` (raised while conditioning or fitting ``logs``) with the logs named in front
+    when its message names none of them (e.g. "only 0 usable rows after conditioning")."""
+    names = [str(x) for x in logs]
+    text = str(exc)
+    if any(name in text for name in names):
+        return exc
+    return type(exc)(f"{', '.join(names)}: {text}")
+
+
+def call_naming_logs(logs, fn, *args, **kwargs):
+    """``fn(*args, **kwargs)``; a :class:`GuardidError` it raises names ``logs``
+    (:func:`naming_logs`)."""
+    try:
+        return fn(*args, **kwargs)
+    except GuardidError as exc:
+        raise naming_logs(exc, logs) from None

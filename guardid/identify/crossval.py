@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from guardid.identify.checks import call_naming_logs
 from guardid.identify.pipeline import identify
 from guardid.identify.rows import stacked_rows
 from guardid.identify.segments import split_runs
@@ -33,9 +34,10 @@ def fold_scores(runs, description, methods, options, *, current_units=False, set
         for key, attr in closed if {"iv", "didim"} & set(methods) else ():
             values = [getattr(r, attr, None) for r in train]
             loop[key] = None if any(v is None for v in values) else values
-        result = identify(
-            [r.t for r in train], [r.q for r in train], [r.current for r in train],
-            description, methods=methods, conditioning=options,
+        result = call_naming_logs(
+            list(dict.fromkeys(r.source or r.path for r in train)), identify,
+            [r.t for r in train], [r.q for r in train], [r.current for r in train], description,
+            methods=methods, conditioning=options,
             in_current_units=current_units, effort_is_torque=torque,
             qd=None if any(v is None for v in qd) else qd, **loop, **settings,
         )  # fmt: skip
@@ -96,4 +98,8 @@ def leave_one_run_out(logs, runs, description, methods, options, *, current_unit
         lines.append(f"{str(log):{width}s} {fc:6.3g}Hz{cells}")
     mean = "".join(f" {100 * np.mean([sc[m] for _, sc in folds]):8.2f}%" for m in methods)
     lines.append(f"{'mean':{width}s} {'':8s}{mean}")
+    split = split_runs(runs, options.cutoff_hz)
+    if split.gaps:
+        lines.append("a run split at a gap is one fold (its segments held out together):")
+        lines += [f"warning: {w}" for w in split.lines()]
     return "\n".join(lines)
