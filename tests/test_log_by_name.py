@@ -107,7 +107,7 @@ def test_the_angle_check_holds_to_a_thousandth_of_a_count(capture):
     count off, in one row, is refused at that row."""
     run = load_run(capture)
     per_count = 2 * math.pi / PAN_COUNTS_PER_REV
-    assert ANGLE_TOLERANCE_COUNTS * per_count > 1e3 * 5e-10  # far above the printed digits
+    assert ANGLE_TOLERANCE_COUNTS * per_count > 100 * 5e-10  # far above the 9 printed decimals
     run.q = run.q * (1 + 1e-15)
     check_log_robot(run, load_robot("guard"), "test")  # no error
     run.q[1234, 0] += per_count
