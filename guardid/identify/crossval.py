@@ -47,7 +47,7 @@ def fold_scores(runs, description, methods, options, *, current_units=False, set
             values = _all_base_values(description, nominal)
             values.update(dict(zip(result.names, result.results[m].theta, strict=True)))
             sets.append(ParameterSet(m.upper(), values, description))
-        parts = split_runs([held], result.conditioning.cutoff_hz).runs
+        parts = split_runs([held], options.cutoff_hz).runs  # the training runs' rule
         conds = [
             stacked_rows(
                 [_run_tuple(part)], description, result.conditioning,
