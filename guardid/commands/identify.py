@@ -216,13 +216,20 @@ def identify(
     if cv:
         _cross_validate(logs, runs, description, options)
         return
+    from guardid.identify.segments import split_runs
+
+    whole, split = runs, split_runs(runs, cutoff, run.highest_harmonic_hz)
+    runs = split.runs  # long gaps split a run: its segments are conditioned as runs are
     forked = None  # the tracker's replay on another core while the batch fit runs
     if plot_path is None and report_path is None:
         from guardid.online.offline import start_tracking
 
         forked = start_tracking(run, description, methods, lam, beta, log_path=log)
     status.stage("conditioning and fitting")
-    result = run_identify(runs, description, options)
+    from guardid.identify.checks import call_naming_logs
+
+    result = call_naming_logs(logs, run_identify, runs, description, options)
+    result.warnings[:0] = split.lines(result.cutoff_hz)
     if result.untrusted and not force:
         raise UntrustedResult(
             f"{log}: identification cannot be trusted: {'; '.join(result.untrusted)} "
@@ -291,7 +298,7 @@ def identify(
         from guardid.report import write_report
         from guardid.report.cli import identify_page
 
-        page = identify_page(result, description, runs, logs, cond, A, y, tracker)
+        page = identify_page(result, description, whole, logs, cond, A, y, tracker)
         write_report(report_path, page, inputs_paths=logs)
         click.echo(f"report written to {report_path}")
     status.done("identify: done")

@@ -2,6 +2,9 @@
 
 * a guardid log names its robot in its header and its joints in its column names: the
   description must have that name and those joints (``--robot planar2`` on a guard log);
+  the log's columns are then taken in the description's joint order (by name, whatever
+  their order in the file), and its angles must be its encoder counts times the
+  description's scale (:func:`check_angles`);
 * several logs must be different recordings: the same file twice, or two files with the
   same samples, would count every row twice and shrink every standard deviation by sqrt(2);
 * ``validate``: the parameters must belong to the logs' robot.
@@ -13,7 +16,7 @@ import os
 
 import numpy as np
 
-from guardid.errors import ConfigError
+from guardid.errors import ConfigError, GuardidError
 
 
 def _joints(description) -> tuple[str, ...]:
@@ -23,8 +26,11 @@ def _joints(description) -> tuple[str, ...]:
     return tuple(getattr(description, "joint_names", ()))
 
 
-def check_log_robot(run, description, robot_from: str) -> None:
-    """Refuse when a guardid log's header robot or joints differ from ``description``.
+def check_log_robot(run, description, robot_from: str):
+    """Refuse when a guardid log's header robot or joints differ from ``description``; then
+    put the run's per-joint arrays in the description's joint order (in place: the columns
+    were found by name, in the file's order) and check its angles against its encoder
+    counts (:func:`check_angles`). Returns ``run``.
 
     ``robot_from`` says where the description came from, e.g. ``--robot planar2``."""
     named = run.robot_name
@@ -34,11 +40,58 @@ def check_log_robot(run, description, robot_from: str) -> None:
             f"{description.name} (give the log's robot)"
         )
     joints = _joints(description)
-    if run.joint_names is not None and tuple(run.joint_names) != joints:
-        raise ConfigError(
-            f"{run.path}: the log's joints ({', '.join(run.joint_names)}) are not robot "
-            f"{description.name}'s ({', '.join(joints)}) from {robot_from}"
-        )
+    if run.joint_names is None:
+        return run
+    logged = tuple(run.joint_names)
+    robot = f"robot {description.name}'s joints ({', '.join(joints)}) from {robot_from}"
+    for name in logged:
+        if name not in joints:
+            raise ConfigError(
+                f"{run.path}: column counts_{name}: joint {name} is not one of {robot}"
+            )
+    for name in joints:
+        if name not in logged:
+            raise ConfigError(f"{run.path}: no column counts_{name}: {robot} include {name}")
+    order = [logged.index(name) for name in joints]
+    for key in ("q", "current", "voltage", "setpoint", "counts", "qd"):
+        value = getattr(run, key, None)
+        if value is not None and np.ndim(value) == 2:
+            setattr(run, key, np.asarray(value)[:, order])
+    run.joint_names = joints
+    check_angles(run, description)
+    return run
+
+
+ANGLE_TOLERANCE_COUNTS = 1e-3
+"""Largest difference between a logged angle and its encoder count times the description's
+scale, in counts [-]: the writer prints angles to 1e-9 rad, some 1e5 times finer than a
+count of the shipped encoders (2.6e-4 rad), so a float round trip stays far below it, and
+a swapped or edited value, off by at least a count, far above."""
+
+
+def check_angles(run, description) -> None:
+    """Refuse a guardid log whose angles q_<joint>_rad [rad] are not its counts_<joint> x
+    2 pi / (encoder counts per rev x gear ratio) of ``description`` (columns swapped or
+    edited under unchanged names, or a log of another encoder), naming the first column and
+    data row (1 = the first) where they differ by more than :data:`ANGLE_TOLERANCE_COUNTS`."""
+    if run.counts is None or getattr(description, "joints", None) is None:
+        return
+    q, counts = np.asarray(run.q, dtype=float), np.asarray(run.counts, dtype=float)
+    for j, joint in enumerate(description.joints):
+        if joint.encoder is None:
+            continue
+        ratio = joint.drive.gear_ratio if joint.drive is not None else 1.0
+        per_count = 2.0 * np.pi / (joint.encoder.counts_per_rev * ratio)  # [rad]
+        off = np.abs(q[:, j] - counts[:, j] * per_count)
+        bad = np.flatnonzero(~(off <= ANGLE_TOLERANCE_COUNTS * per_count))
+        if bad.size:
+            k = int(bad[0])
+            raise ConfigError(
+                f"{run.path}: column q_{joint.name}_rad, data row {k + 1}: {q[k, j]:.9g} rad, "
+                f"but counts_{joint.name} {counts[k, j]:.0f} x {per_count:.6g} rad (robot "
+                f"{description.name}'s encoder) = {counts[k, j] * per_count:.9g} rad (columns "
+                "swapped or edited?)"
+            )
 
 
 def _same_file(a: str, b: str) -> bool:
@@ -95,3 +148,22 @@ def check_cutoff(cutoff_hz, runs) -> None:
                 f"--cutoff: {cutoff_hz:g} Hz is not below {run.path}'s Nyquist frequency "
                 f"{nyquist:.4g} Hz"
             )
+
+
+def naming_logs(exc: GuardidError, logs) -> GuardidError:
+    """``exc`` (raised while conditioning or fitting ``logs``) with the logs named in front
+    when its message names none of them (e.g. "only 0 usable rows after conditioning")."""
+    names = [str(x) for x in logs]
+    text = str(exc)
+    if any(name in text for name in names):
+        return exc
+    return type(exc)(f"{', '.join(names)}: {text}")
+
+
+def call_naming_logs(logs, fn, *args, **kwargs):
+    """``fn(*args, **kwargs)``; a :class:`GuardidError` it raises names ``logs``
+    (:func:`naming_logs`)."""
+    try:
+        return fn(*args, **kwargs)
+    except GuardidError as exc:
+        raise naming_logs(exc, logs) from None

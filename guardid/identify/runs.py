@@ -34,6 +34,9 @@ class Run:
     robot_name: str | None = None  # the robot named in a guardid log's header
     joint_names: tuple[str, ...] | None = None  # a guardid log's joints (column names)
     setpoint: np.ndarray | None = None  # a guardid log's sp_* columns [rad] (N, n)
+    counts: np.ndarray | None = None  # a guardid log's counts_* columns (N, n) [counts]
+    sample_period_s: float | None = None  # a guardid log's tick period [s]
+    source: str | None = None  # the file a segment comes from (None: path is the file)
 
 
 def load_run(path, sample_period_s: float | None = None, mapping=None, description=None) -> Run:
@@ -66,32 +69,32 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
         raise LogFormatError(f"{path}: only {len(ticks)} rows")
     period = _sample_period(path, data.header, sample_period_s)
     for key in ("q", "i"):
-        if not any(c.startswith(key + "_") for c in data.columns):
+        if not data.has_group(key):
             raise LogFormatError(f"{path}: no {key}_* columns (expected one per joint)")
-    q = data.joint_array("q")
-    current = data.joint_array("i")
-    has_sp = any(c.startswith("sp_") for c in data.columns)
-    setpoint = data.joint_array("sp") if has_sp else None
-    has_v = any(c.startswith("v_") for c in data.columns)
-    voltage = data.joint_array("v") if has_v else np.empty((len(ticks), 0))  # optional
+    data.check_joint_columns()
     joints = data.joint_names
-    if q.shape[1] == 0 or current.shape != q.shape or q.shape[1] != len(joints):
+    if not joints:
         raise LogFormatError(
-            f"{path}: expected counts_*, q_* and i_* columns for every joint; found "
-            f"{len(joints)}, {q.shape[1]} and {current.shape[1]}"
+            f"{path}: no counts_* columns (expected counts_*, q_* and i_* columns for every joint)"
         )
+    q = data.joint_array("q", joints)  # by name, in the order of the counts_* columns
+    current = data.joint_array("i", joints)
+    setpoint = data.joint_array("sp", joints) if data.has_group("sp") else None
+    voltage = data.joint_array("v", joints) if data.has_group("v") else None  # optional
     return Run(
         path=str(path),
         robot=data.header.get("robot_source") or data.header.get("robot"),
         ticks=ticks,
         t=(ticks - ticks[0]) * period,
+        sample_period_s=period,
         q=q,
         current=current,
-        voltage=voltage if voltage.shape == q.shape else None,
+        voltage=voltage,
         highest_harmonic_hz=trajectory_highest_harmonic(data.header.get("trajectory")),
         robot_name=data.header.get("robot"),
-        joint_names=tuple(data.joint_names),
-        setpoint=setpoint if setpoint is not None and setpoint.shape == q.shape else None,
+        joint_names=tuple(joints),
+        setpoint=setpoint,
+        counts=data.joint_array("counts", joints),
     )
 
 
@@ -150,4 +153,5 @@ def _load_foreign(path, mapping, description) -> Run:
         voltage=data.voltage,
         torque=data.torque,
         qd=data.qd,
+        sample_period_s=period if on_grid else None,
     )

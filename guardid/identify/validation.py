@@ -260,25 +260,34 @@ def validate_runs(runs, names, description, sets, options, current_units=False, 
     ``keep`` (a dict, optional) receives what the HTML report draws: ``conds`` (per run),
     ``scores``, ``preds`` ((run, label) -> predicted effort) and ``head``.
     """
+    from guardid.identify.checks import call_naming_logs
     from guardid.identify.rows import stacked_rows
+    from guardid.identify.segments import split_runs
 
     torque = bool(runs[0].torque)
+    split = split_runs(runs, options.cutoff_hz)  # long gaps: segments scored as runs
+    if split.gaps:
+        runs, names = split.runs, [r.path for r in split.runs]
     arrays = [_run_tuple(r) for r in runs]
     kw = {"in_current_units": current_units, "effort_is_torque": torque}
     if options.cutoff_hz is None:
-        chosen = stacked_rows(arrays, description, options, **kw)
+        chosen = call_naming_logs(names, stacked_rows, arrays, description, options, **kw)
         head = f"conditioning: {chosen.cond.notes[0]}"
         options = chosen.options
     else:
         head = f"conditioning: cut-off {options.cutoff_hz:g} Hz (the first params file's or given)"
     if options.parallel_filter_hz:
         head += f", parallel filter {options.parallel_filter_hz:g} Hz"
-    conds = [stacked_rows([a], description, options, **kw).cond for a in arrays]
+    conds = [
+        call_naming_logs([name], stacked_rows, [a], description, options, **kw).cond
+        for a, name in zip(arrays, names, strict=True)
+    ]
     preds = {} if keep is not None else None
     scores = score_sets(conds, sets, [str(n) for n in names], current_units, preds=preds)
     if keep is not None:
-        keep.update(conds=conds, scores=scores, preds=preds, head=head)
+        keep.update(conds=conds, scores=scores, preds=preds, head=head, names=list(names))
     lines = [head + "; the same rows for every parameter set"]
+    lines += [f"warning: {w}" for w in split.lines(options.cutoff_hz)]
     for s in sets:
         if s.defaulted:
             lines.append(f"{s.label}: not given, the robot description's values: "

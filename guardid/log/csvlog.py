@@ -28,6 +28,8 @@ import yaml
 from guardid.errors import GuardidError
 
 LOG_VERSION = 1
+LOG_VERSION_KEY = "guardid-log"  #: the header key holding the format version
+KNOWN_LOG_VERSIONS = (1,)  #: format versions :func:`guardid.log.read_log` reads
 PER_JOINT = (
     ("counts", "raw encoder counts at the tick"),
     ("q", "joint angle at the tick [rad]"),
@@ -37,12 +39,19 @@ PER_JOINT = (
 )
 
 
+_UNIT_SUFFIX = {"q": "_rad", "v": "_V", "i": "_A", "sp": "_rad"}
+
+
+def per_joint_column(key: str, joint: str) -> str:
+    """The column of ``joint`` in group ``key`` (counts, q, v, i or sp), e.g. q_pan_rad."""
+    return f"{key}_{joint}{_UNIT_SUFFIX.get(key, '')}"
+
+
 def column_names(joint_names) -> list[str]:
     """Column names for the given joints, in file order."""
     cols = ["tick", "time_s"]
     for key, _ in PER_JOINT:
-        unit = {"q": "_rad", "v": "_V", "i": "_A", "sp": "_rad"}.get(key, "")
-        cols += [f"{key}_{name}{unit}" for name in joint_names]
+        cols += [per_joint_column(key, name) for name in joint_names]
     return cols + ["status"]
 
 
@@ -97,7 +106,7 @@ class LogWriter:
             ) from None
         except OSError as exc:
             raise LogWriteError(f"{self.path}: cannot write: {exc.strerror}") from None
-        head = {"guardid-log": LOG_VERSION, **header, "columns": self.columns}
+        head = {LOG_VERSION_KEY: LOG_VERSION, **header, "columns": self.columns}
         text = ",".join(self.columns) + "\n"
         text += _comment(yaml.safe_dump(head, sort_keys=False, width=1000))
         try:

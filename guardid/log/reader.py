@@ -5,8 +5,12 @@ is parsed by :mod:`guardid.log.numeric` (compiled loops) into one preallocated f
 array, so memory follows the rows kept, not the text. Every problem is a one-line
 :class:`~guardid.errors.LogFormatError` naming the file and the line (and column): binary
 or gzip-compressed data, a field that is not a number, NaN or inf, a line with another field
-count, data after the footer, ticks that do not increase (two logs appended). A last row
-cut mid-line (a killed writer) is dropped with a :class:`~guardid.errors.LogWarning`.
+count, data after the footer, ticks that do not increase (two logs appended or a repeated
+tick), a column name given twice, a header naming a format version this reader does not
+know, fields separated by tabs or semicolons (guardid logs are comma-separated). A last row
+cut mid-line (a killed writer) is dropped with a :class:`~guardid.errors.LogWarning`, and so
+is a footer whose row count disagrees with the rows read. A UTF-8 byte-order mark before
+the column names (an editor's) is skipped.
 """
 
 from __future__ import annotations
@@ -19,10 +23,13 @@ import numpy as np
 import yaml
 
 from guardid.errors import LogFormatError, LogWarning
+from guardid.log.csvlog import KNOWN_LOG_VERSIONS, LOG_VERSION_KEY, per_joint_column
 from guardid.log.numeric import RowError, parse_lines, parse_plain
 
 BLOCK_BYTES = 1 << 18  #: bytes read and parsed at a time (256 kB: the work arrays stay in cache)
 _GZIP_MAGIC = b"\x1f\x8b"
+_BOM = b"\xef\xbb\xbf"  #: UTF-8 byte-order mark (some editors write it)
+_OTHER_DELIMITERS = {"\t": "tabs", ";": "semicolons"}
 _YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml when built with it
 
 
@@ -42,12 +49,41 @@ class LogData:
 
     @property
     def joint_names(self) -> list[str]:
+        """The log's joints, in the order of its ``counts_<joint>`` columns."""
         return [c[len("counts_") :] for c in self.columns if c.startswith("counts_")]
 
-    def joint_array(self, key: str) -> np.ndarray:
-        """(N, n) array of a per-joint column group: counts, q, v, i or sp."""
-        names = [c for c in self.columns if c.startswith(key + "_")]
+    def has_group(self, key: str) -> bool:
+        """Whether any per-joint column of group ``key`` (counts, q, v, i or sp) is present."""
+        return any(c.startswith(key + "_") for c in self.columns)
+
+    def joint_array(self, key: str, joints=None) -> np.ndarray:
+        """(N, n) array of a per-joint column group (counts, q, v, i or sp), found by name
+        (``q_<joint>_rad``, ...: :func:`~guardid.log.csvlog.per_joint_column`) in the order
+        of ``joints`` (default :attr:`joint_names`); a missing column is a
+        :class:`LogFormatError` naming it."""
+        joints = self.joint_names if joints is None else list(joints)
+        names = [per_joint_column(key, j) for j in joints]
+        missing = [c for c in names if c not in self.columns]
+        if missing:
+            raise LogFormatError(
+                f"{self.path}: column {missing[0]} missing (expected counts_*, q_*, i_* and, "
+                f"if any, v_*, sp_* columns for every joint: {', '.join(joints)})"
+            )
+        if not names:
+            return np.empty((len(self.columns.get("tick", ())), 0))
         return np.column_stack([self.columns[c] for c in names])
+
+    def check_joint_columns(self) -> None:
+        """Every per-joint column must name one of the joints of the ``counts_*`` columns
+        (a :class:`LogFormatError` naming the first that does not)."""
+        known = {per_joint_column(k, j) for k in ("counts", "q", "v", "i", "sp")
+                 for j in self.joint_names}  # fmt: skip
+        for c in self.columns:
+            if c.split("_")[0] in ("counts", "q", "v", "i", "sp") and c not in known:
+                raise LogFormatError(
+                    f"{self.path}: column {c}: no such joint among the log's counts_* "
+                    f"columns ({', '.join(self.joint_names) or 'none'})"
+                )
 
 
 def read_log(path) -> LogData:
@@ -119,10 +155,7 @@ class _Reader:
         self.line = 1
         if first.startswith(_GZIP_MAGIC):
             raise LogFormatError(f"{path}: gzip-compressed: decompress it first (gunzip)")
-        names_text = self._text(first, 1).strip()
-        if not names_text or names_text.startswith("#"):
-            raise LogFormatError(f"{path}: line 1: expected the column names")
-        names = [n.strip() for n in names_text.split(",")]
+        names = _column_names(path, self._text(first.removeprefix(_BOM), 1).strip())
         head, pending = [], b""
         for raw in iter(f.readline, b""):
             self.line += 1
@@ -133,13 +166,27 @@ class _Reader:
                 self.line -= 1  # re-read as the first data line
                 break
         header = _yaml(path, head, "header")
+        _check_version(path, header)
         store = _Rows(len(names), path.stat().st_size)
         foot = self._body(names, pending, store)
         footer = _yaml(path, foot, "footer").get("footer") if foot is not None else None
         columns = {name: store.data[c, : store.n] for c, name in enumerate(names)}
         if "tick" in columns:
             columns["tick"] = self._ticks(columns["tick"], store)
+        self._check_footer(footer, store.n)
         return LogData(path, header, footer, columns, self.warnings)
+
+    def _check_footer(self, footer, rows: int) -> None:
+        """Warn when the footer's row count is not the number of data rows read."""
+        claimed = footer.get("rows") if isinstance(footer, dict) else None
+        if claimed is None or claimed == rows:
+            return
+        msg = (
+            f"{self.path}: footer: rows: {claimed!r}, but the file holds {rows} data rows "
+            "(rows removed or added after the capture?)"
+        )
+        self.warnings.append(msg)
+        warnings.warn(msg, LogWarning, stacklevel=4)
 
     def _body(self, names: list[str], buf: bytes, store: _Rows) -> list[str] | None:
         """Parse data lines into ``store``; return the footer's lines (None: no footer)."""
@@ -229,12 +276,47 @@ class _Reader:
         back = np.flatnonzero(np.diff(ticks) <= 0)
         if back.size:
             r = int(back[0]) + 1
-            raise RowError(
-                store.line_of(r),
-                f"tick {ticks[r]} after {ticks[r - 1]}: the ticks restart (two logs "
-                "appended? split them and give each to the command)",
-            )
+            if ticks[r] == ticks[r - 1]:
+                why = "a repeated tick (a row written twice?)"
+            else:
+                why = "the ticks restart (two logs appended? split them and give each to the "
+                why += "command)"
+            raise RowError(store.line_of(r), f"tick {ticks[r]} after {ticks[r - 1]}: {why}")
         return ticks
+
+
+def _column_names(path: Path, text: str) -> list[str]:
+    """The names of line 1; refuse a blank or commented line, another delimiter than the
+    comma, and a name given twice."""
+    if not text or text.startswith("#"):
+        raise LogFormatError(f"{path}: line 1: expected the column names")
+    if "," not in text:
+        for delimiter, what in _OTHER_DELIMITERS.items():
+            if delimiter in text:
+                raise LogFormatError(
+                    f"{path}: line 1: fields separated by {what}; guardid logs are "
+                    "comma-separated (re-export it as CSV with commas)"
+                )
+    names = [n.strip() for n in text.split(",")]
+    seen = set()
+    for name in names:
+        if name in seen:
+            raise LogFormatError(f"{path}: line 1: column {name!r} given twice")
+        seen.add(name)
+    return names
+
+
+def _check_version(path: Path, header: dict) -> None:
+    """Refuse a header naming a log format version this reader does not know."""
+    if LOG_VERSION_KEY not in header:
+        return
+    version = header[LOG_VERSION_KEY]
+    if isinstance(version, bool) or version not in KNOWN_LOG_VERSIONS:
+        known = ", ".join(str(v) for v in KNOWN_LOG_VERSIONS)
+        raise LogFormatError(
+            f"{path}: header: {LOG_VERSION_KEY}: format version {version!r} unknown to this "
+            f"guardid (it reads version {known}; a newer guardid wrote it?)"
+        )
 
 
 def _comment_start(buf: bytes) -> int | None:

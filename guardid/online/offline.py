@@ -50,6 +50,9 @@ def track_log(
     cannot be replayed (foreign log without ticks or with measured torque). ``effort``: as
     :class:`OnlineIdentifier`'s; 'voltage' falls back to 'current' for a log without voltages.
     ``keep_history``: keep every estimate (for a plot; 200 bytes per row and method).
+    The whole run is replayed, gaps and all: the causal conditioning restarts after every
+    lost tick (:func:`guardid.online.replay.replay`), which is stricter than the batch fit's
+    split at long gaps (:mod:`guardid.identify.segments`); the estimators carry on.
     The cut-off follows the run's ``highest_harmonic_hz`` (read with the log, see
     :func:`guardid.identify.runs.load_run`); ``log_path`` is read for it only when the run
     does not carry it.
@@ -82,9 +85,12 @@ def track_log(
     if "hopfield" in online:
         settings.append(f"Hopfield beta {tracker.beta:g}")
     settings.append(f"current from the {'motor equation' if effort == 'voltage' else 'sensor'}")
+    gaps = int(np.count_nonzero(np.diff(np.asarray(run.ticks)) > 1))
+    restarts = f"; its causal filter restarted after each of {gaps} gaps" if gaps else ""
     echo(
         f"tracking (the log replayed through the online tracker: {', '.join(settings)}, "
-        f"cut-off {tracker.cutoff_hz:.3g} Hz, {tracker.used} of {tracker.rows} rows used)"
+        f"cut-off {tracker.cutoff_hz:.3g} Hz, {tracker.used} of {tracker.rows} rows used"
+        f"{restarts})"
     )
     for report in tracker.reports:
         echo(str(report))

@@ -48,6 +48,7 @@ def validate_page(description, names, sets, keep, current_units: bool) -> str:
 
     joints = [j.name for j in description.joints]
     runs = []
+    names = keep.get("names", names)  # a run split at a long gap: its segments
     for cond, name in zip(keep["conds"], names, strict=True):
         name = str(name)
         mine = {s.label: s for s in keep["scores"] if s.run == name}

@@ -104,11 +104,33 @@ def _parse_chain(ck: Checker, data: dict, source: str) -> ChainDescription:
         ck.fail("joints", "at least one joint is required")
     links_raw = ck.sequence(data["links"], "links", len(joints_raw))
     joints = tuple(_joint(ck, j, f"joints[{i}]", i) for i, j in enumerate(joints_raw))
+    _check_joint_names(ck, [j.name for j in joints], "joints[{}].name")
     _check_rotor_coupling(ck, joints)
     links = tuple(_link(ck, v, f"links[{i}]", i) for i, v in enumerate(links_raw))
     return ChainDescription(
         name=name, joints=joints, links=links, gravity=gravity, sample_period=period, source=source
     )
+
+
+_NOT_IN_A_NAME = (",", "\n", "\r", '"')
+"""Characters a joint name may not hold: it becomes part of the log's comma-separated
+column names (q_<joint>_rad, ...)."""
+
+
+def _check_joint_names(ck: Checker, names, path: str) -> None:
+    """Joint names must be unique (the log's columns and the trajectories find joints by
+    name) and usable inside a log's column names; ``path`` has a ``{}`` for the index."""
+    seen: dict[str, int] = {}
+    for i, name in enumerate(names):
+        if name in seen:
+            ck.fail(path.format(i), f"{name!r} is also joint {seen[name]}'s name (joint names "
+                    "must be unique: logs and trajectories find joints by name)")  # fmt: skip
+        bad = next((c for c in _NOT_IN_A_NAME if c in name), None)
+        if bad is not None or not name or name != name.strip():
+            ck.fail(path.format(i), f"{name!r}: a joint name must be non-empty, without commas, "
+                    "quotes, line breaks or spaces at its ends (it is part of the log's column "
+                    "names)")  # fmt: skip
+        seen[name] = i
 
 
 def _friction(ck: Checker, raw, fp: str) -> Friction:
@@ -348,6 +370,7 @@ def _parse_flexlink(ck: Checker, data: dict, source: str) -> FlexibleLinkDescrip
     x0 = np.array(ck.vector(data.get("initial_state", [0.0, 0.0, 0.0, 0.0]), "initial_state", 4))
     names = ck.sequence(data.get("joint_names", ["hub", "flex"]), "joint_names", 2)
     names = tuple(ck.string(n, f"joint_names[{i}]") for i, n in enumerate(names))
+    _check_joint_names(ck, names, "joint_names[{}]")
     period = ck.number(data.get("sample_period", 0.0005), "sample_period", positive=True)
     return FlexibleLinkDescription(
         name=ck.string(data["name"], "name"),

@@ -1,0 +1,43 @@
+"""Session fixtures shared by several test modules (keep them few, specific and cheap)."""
+
+from __future__ import annotations
+
+import pytest
+from badinput_tools import invoke, one_blas_thread
+
+GAP_SEEDS = (1, 2, 3)
+GAP_CAPTURE_S = 60
+
+
+@pytest.fixture(scope="session")
+def gap_guard_captures(tmp_path_factory) -> dict:
+    """{seed: path} of a 60 s lock-step capture of ``sim://guard?seed=N`` (seeds 1-3) on the
+    unoptimised default excitation, made once per session (about 2 s of CPU each); tests
+    copy or edit them, never write beside them."""
+    d = tmp_path_factory.mktemp("gap_guard_captures")
+    traj = d / "traj.yaml"
+    with one_blas_thread():
+        res = invoke("excite", "--no-optimise", "-o", traj)
+        assert res.exit_code == 0, res.output
+        out = {}
+        for seed in GAP_SEEDS:
+            log = d / f"run{seed}.csv"
+            res = invoke("capture", "--port", f"sim://guard?seed={seed}", "--trajectory", traj,
+                         "--duration", GAP_CAPTURE_S, "--quiet", "-o", log)  # fmt: skip
+            assert res.exit_code == 0, res.output
+            out[seed] = log
+    return out
+
+
+@pytest.fixture(scope="session")
+def gap_guard_wls_params(gap_guard_captures, tmp_path_factory) -> dict:
+    """{seed: path} of ``identify --method wls -o`` on each intact capture of
+    :func:`gap_guard_captures` (the reference the damaged copies are held against)."""
+    d = tmp_path_factory.mktemp("gap_guard_wls")
+    out = {}
+    with one_blas_thread():
+        for seed, log in gap_guard_captures.items():
+            out[seed] = d / f"p{seed}.yaml"
+            res = invoke("identify", log, "--method", "wls", "-o", out[seed])
+            assert res.exit_code == 0, res.stderr
+    return out
