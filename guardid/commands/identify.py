@@ -208,6 +208,9 @@ def identify(
     if len({r.torque for r in runs}) > 1:
         raise ConfigError(f"{logs[-1]}: mixes measured torque and motor current with {log}")
     methods = tuple(m.strip() for m in method.split(",") if m.strip())
+    from guardid.identify.methods import methods_for
+
+    methods_for(methods)  # an unknown method is an option error, before any log is named
     options = IdentifyOptions(
         methods=methods, conditioning=ConditioningOptions(cutoff_hz=cutoff,
         parallel_filter_hz=parallel_hz), hopfield=HopfieldSettings(beta=beta), rls_lambda=lam,
