@@ -27,6 +27,7 @@ from guardid.estimators import (
     WeightedLeastSquares,
     d_tau,
 )
+from guardid.estimators.mlp import last_improvement, plateau_window
 from guardid.identify.electrical import MotorEstimate, identify_motor
 from guardid.identify.rows import (  # noqa: F401  (re-exported)
     STICTION_GUARD_PERIODS,
@@ -82,6 +83,7 @@ class MethodResult:
     settings: dict = field(default_factory=dict)
     converged: bool = True  # False: in-sample fit much worse than LS's (not an equal)
     d_stacked: float = math.nan  # in-sample rms(y - A theta) / rms(y), joints stacked [-]
+    output_spread: np.ndarray | None = None  # MLP: its output's spread over the rows, not a std
 
 
 @dataclass
@@ -251,6 +253,10 @@ def identify(
         results[method] = _result(method, est, A, y, cond.t[cond.mask])
         if method in ("iv", "didim"):  # the report's "(not converged)" and params' flag
             results[method].converged = bool(est.converged)
+        if method == "mlp":  # converged: training loss levelled off (guardid.estimators.mlp)
+            results[method].converged = bool(est.converged_)
+            if not est.converged_:
+                closed_loop_notes.append(_mlp_not_converged(est))
         if method == "hopfield":
             results[method].settings = {
                 "beta": beta,
@@ -370,9 +376,11 @@ def _result(method, est, A, y, t_rows) -> MethodResult:
         n = len(t_rows)
         span = float(t_rows[-1] - t_rows[0]) + (float(t_rows[1] - t_rows[0]) if n > 1 else 0.0)
         hist_t = t_rows[np.clip(idx - 1, 0, None) % n] + np.clip(idx - 1, 0, None) // n * span
+    spread = getattr(est, "output_spread_", None)
     return MethodResult(
         method=method,
         theta=theta,
+        output_spread=None if spread is None else np.asarray(spread),
         std=None if std is None else np.asarray(std),
         rel_std_pct=None if rel is None else np.asarray(rel),
         history=None if hist is None else np.asarray(hist),
@@ -380,6 +388,18 @@ def _result(method, est, A, y, t_rows) -> MethodResult:
         d_tau=float(d_tau(A, y, theta)),
         d_stacked=stacked_error(A, y, theta),
         d_tau_per_joint=np.asarray(d_tau(A, y, theta, per_joint=True)),
+    )
+
+
+def _mlp_not_converged(est) -> str:
+    """The warning for an MLP whose training stopped while its loss still fell."""
+    if est.diverged_:
+        return "MLP: not converged: training diverged (non-finite loss)"
+    n = len(est.loss_history_)
+    drop = 100.0 * last_improvement(est.loss_history_)
+    return (
+        f"MLP: not converged: its training loss still fell {drop:.1f} % over the last "
+        f"{plateau_window(n)} of {n} epochs (its values are not final)"
     )
 
 
