@@ -126,7 +126,8 @@ def test_reader_refuses_a_repeated_tick_naming_the_line(tmp_path):
     with pytest.raises(LogFormatError) as info:
         read_log(path)
     msg = str(info.value)
-    assert "\n" not in msg and str(path) in msg and "line 5" in msg and "tick 2 after 2" in msg
+    assert "\n" not in msg and str(path) in msg and "line 5" in msg and "tick 2" in msg
+    assert "after 2" in msg or "repeat" in msg
     # the same rows with the ticks increasing are read (the refusal is about the tick)
     path.write_text(path.read_text().replace("2,0.015,3", "4,0.045,3").replace("3,0.030", "5,0.06"))
     assert read_log(path).columns["tick"].tolist() == [1, 2, 4, 5]
@@ -151,7 +152,7 @@ def test_load_run_refuses_a_repeated_tick(tmp_path):
     lines = path.read_text().splitlines()
     data_lines = [k + 1 for k, ln in enumerate(lines) if k and not ln.startswith("#")]
     assert "\n" not in msg and str(path) in msg
-    assert "109 after 109" in msg
+    assert "109 after 109" in msg or ("109" in msg and "repeat" in msg)
     assert f"line {data_lines[10]}" in msg or "row 11" in msg  # the repeated row, either way
     # the same log with every tick increasing loads
     _guard_log(tmp_path / "ok.csv", list(range(100, 121)))
