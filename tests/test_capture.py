@@ -11,6 +11,7 @@ import time
 
 import numpy as np
 import pytest
+from capturetools import gentle_trajectory
 from linktools import Recorder, Sines, expected_damage, teed_devices
 
 from guardid.capture import capture
@@ -158,16 +159,30 @@ def test_bad_log_gives_one_line_error(tmp_path):
     bad.write_text("tick,time_s\n# guardid-log: 1\n1,0.0\n2,abc\n")
     from guardid.errors import LogFormatError
 
-    with pytest.raises(LogFormatError, match=r"bad.csv: line 4: not a number"):
+    with pytest.raises(LogFormatError, match=r"bad.csv: line 4: not a number") as info:
         read_log(bad)
+    assert "\n" not in str(info.value)
     missing = tmp_path / "nope.csv"
-    with pytest.raises(LogFormatError, match="nope.csv: cannot read"):
+    with pytest.raises(LogFormatError, match="nope.csv: cannot read") as info:
         read_log(missing)
+    assert "\n" not in str(info.value)
 
 
-def test_missing_port_is_a_one_line_error():
-    with pytest.raises(LinkError, match="port /dev/ttyNOPE0: cannot open"):
+def test_missing_port_is_a_one_line_error(tmp_path):
+    with pytest.raises(LinkError, match="port /dev/ttyNOPE0: cannot open") as info:
         open_port("/dev/ttyNOPE0")
+    assert "\n" not in str(info.value)
+    # the command line: one line on stderr naming the port, exit 3 (link), no log left
+    traj = gentle_trajectory(tmp_path / "t.yaml")
+    log = tmp_path / "run.csv"
+    proc = subprocess.run(
+        [sys.executable, "-m", "guardid", "capture", "--trajectory", str(traj), "--duration",
+         "2", "--port", "/dev/ttyNOPE0", "-o", str(log)], capture_output=True, text=True,
+    )  # fmt: skip
+    err = proc.stderr.strip()
+    assert proc.returncode == 3, proc.stderr
+    assert err.count("\n") == 0 and err.startswith("guardid: error: port /dev/ttyNOPE0"), err
+    assert not log.exists()
     env = dict(os.environ)
     proc = subprocess.run(
         [sys.executable, "-m", "guardid", "ports"], capture_output=True, text=True, env=env

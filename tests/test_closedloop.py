@@ -230,13 +230,14 @@ def test_several_runs_stack_their_simulations(quiet_log):
 def test_cross_validation_runs_the_closed_loop_methods(quiet_log, tmp_path):
     """``identify --cv --method wls,iv``: every fold gets its training runs' setpoints, ticks
     and voltages, so IV is scored beside WLS (it once stopped with "no setpoints"); on two
-    noise-free runs of one excitation, IV's held-out error is WLS's within 10 %."""
+    noise-free runs of one excitation, IV's held-out error is WLS's (both ~0.31 %) within the
+    rounding of the printed figures (0.01 percentage points each), i.e. within 5 %."""
     second = _capture(tmp_path, "sim://guard?noise=0&phase=1&seed=5", 10, optimise=False)
     res = invoke("identify", quiet_log, second, "--method", "wls,iv", "--cv", "--cutoff", "4")
     assert res.exit_code == 0, res.output
     mean = next(line for line in res.output.splitlines() if line.startswith("mean"))
     wls, iv = (float(x.rstrip("%")) for x in mean.split()[1:3])
-    assert iv == pytest.approx(wls, rel=0.10)
+    assert iv == pytest.approx(wls, abs=0.015)  # printed to 0.01 %; IV 10 % worse: ~0.03
 
 
 def test_a_closed_loop_fit_that_does_not_settle_is_marked_in_the_result(quiet_log, monkeypatch):

@@ -56,9 +56,10 @@ def test_mean_output_converges_to_constant_theta_and_spread_shrinks():
     assert err[-1] < 0.1 * err[0]
     np.testing.assert_allclose(net.theta_, theta, rtol=0.01)
     # the spread across samples shrinks from the initial network's by orders of magnitude
-    assert np.all(net.std_ < 0.02 * init.std_), (init.std_, net.std_)
+    spread, spread0 = net.output_spread_, init.output_spread_
+    assert np.all(spread < 0.02 * spread0), (spread0, spread)
     assert np.all(net.spread_history_[-1] < net.spread_history_[0])
-    assert net.std_ == pytest.approx(net.spread_history_[-1])
+    assert net.output_spread_ == pytest.approx(net.spread_history_[-1])
     assert net.loss_history_[-1] < 0.1 * net.loss_history_[0]
     # the torque fit reaches the noise floor (noise variance 0.05^2 per row)
     assert net.loss_ == pytest.approx(0.05**2, rel=0.2)
@@ -69,7 +70,7 @@ def test_paper_plain_backprop_full_batch_also_converges():
     net = MLP(momentum=0.0, weight_decay=0.0, batch_size=None, lr=0.1, epochs=3000)
     net.fit(A, y, X=X)
     np.testing.assert_allclose(net.theta_, theta, rtol=0.02)
-    assert np.all(net.std_ < 0.05 * np.abs(theta))
+    assert np.all(net.output_spread_ < 0.05 * np.abs(theta))
 
 
 def test_target_stops_training_and_flags_convergence():
@@ -103,7 +104,7 @@ def test_deterministic_given_seed():
     b = MLP(epochs=20, seed=5).fit(A, y, X=X)
     c = MLP(epochs=20, seed=6).fit(A, y, X=X)
     np.testing.assert_array_equal(a.theta_, b.theta_)
-    np.testing.assert_array_equal(a.std_, b.std_)
+    np.testing.assert_array_equal(a.output_spread_, b.output_spread_)
     assert not np.array_equal(a.theta_, c.theta_)
 
 

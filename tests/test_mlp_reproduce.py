@@ -64,6 +64,7 @@ def test_identify_method_mlp():
     desc = load_robot("planar2")
     r = identify([run_from_arrays(t, q, tau, torque=True)], desc, IdentifyOptions(("ls", "mlp")))
     mlp = r.results["mlp"]
-    assert mlp.std is not None and mlp.std.shape == mlp.theta.shape  # spread over the rows
+    assert mlp.std is None  # no standard deviation: its output's spread over the rows
+    assert mlp.output_spread is not None and mlp.output_spread.shape == mlp.theta.shape
     np.testing.assert_allclose(mlp.theta, r.nominal, rtol=0.02)
     assert mlp.d_tau < 2 * r.results["ls"].d_tau

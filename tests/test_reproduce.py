@@ -178,5 +178,10 @@ def test_cli_plot_without_matplotlib(monkeypatch, tmp_path):
 
 
 def test_cli_rejects_unknown_experiment():
+    """Bad input: one line naming the value and the choices, exit 2, no traceback."""
     res = CliRunner().invoke(main, ["reproduce", "seed002"])
-    assert res.exit_code != 0
+    assert res.exit_code == 2, res.output
+    assert isinstance(res.exception, SystemExit)  # not an exception escaping the command
+    line = res.output.strip()
+    assert line.count("\n") == 0 and line.startswith("guardid: error: "), res.output
+    assert "'seed002'" in line and "seed001-table1" in line and "Traceback" not in line

@@ -78,6 +78,7 @@ class MethodFit:
     converged: bool = True
     notes: list[str] = field(default_factory=list)
     extra: dict[str, MethodFit] = field(default_factory=dict)
+    output_spread: np.ndarray | None = None  # MLP: its output's spread over the rows
 
     def __post_init__(self):
         self.theta = np.asarray(self.theta, dtype=float)
@@ -98,6 +99,7 @@ class MethodFit:
             rel_std_pct=getattr(est, "rel_std_", None),
             history=getattr(est, "history_", None),
             history_samples=getattr(est, "history_samples_", None),
+            output_spread=getattr(est, "output_spread_", None),
             **kwargs,
         )
 
@@ -242,7 +244,24 @@ class MLPMethod(Method):
 
         c = rows.rows.cond
         m = c.mask
-        return MethodFit.of(MLP().fit(rows.A, rows.y, X=np.hstack([c.q[m], c.qd[m], c.qdd[m]])))
+        est = MLP().fit(rows.A, rows.y, X=np.hstack([c.q[m], c.qd[m], c.qdd[m]]))
+        # converged: the training loss levelled off (guardid.estimators.mlp)
+        notes = [] if est.converged_ else [_mlp_not_converged(est)]
+        return MethodFit.of(est, converged=bool(est.converged_), notes=notes)
+
+
+def _mlp_not_converged(est) -> str:
+    """The warning for an MLP whose training stopped while its loss still fell."""
+    from guardid.estimators.mlp import last_improvement, plateau_window
+
+    if est.diverged_:
+        return "MLP: not converged: training diverged (non-finite loss)"
+    n = len(est.loss_history_)
+    drop = 100.0 * last_improvement(est.loss_history_)
+    return (
+        f"MLP: not converged: its training loss still fell {drop:.1f} % over the last "
+        f"{plateau_window(n)} of {n} epochs (its values are not final)"
+    )
 
 
 def _check_closed_loop(methods, runs, description) -> None:

@@ -116,6 +116,7 @@ class MethodResult:
     d_stacked: float = math.nan  # in-sample rms(y - A theta) / rms(y), joints stacked [-]
     cov: np.ndarray | None = None
     notes: list[str] = field(default_factory=list)
+    output_spread: np.ndarray | None = None  # MLP: its output's spread over the rows, not a std
 
 
 @dataclass
@@ -354,6 +355,7 @@ def _result(method, fit: MethodFit, A, y, t_rows) -> MethodResult:
         d_stacked=stacked_error(A, y, theta),
         cov=fit.cov,
         notes=list(fit.notes),
+        output_spread=None if fit.output_spread is None else np.asarray(fit.output_spread),
     )
 
 

@@ -39,9 +39,17 @@ def effort_units(result, description) -> str:
     return ", ".join(f"{j.name} {k}" for j, k in zip(description.joints, kinds, strict=True))
 
 
+SPREAD_NOTE = (
+    "MLP ~: the spread of the network's output over the rows (its standard deviation over "
+    "the samples), not an uncertainty of the estimate"
+)
+"""What an MLP's "~" (table) and ``output_spread`` (params.yaml) are."""
+
+
 def table(result, methods, description=None) -> str:
-    """Base parameters per method: estimate, +- std where known, and the description's value;
-    then the conditioning (cut-off and why, rows used and dropped) and the friction model."""
+    """Base parameters per method: estimate, +- std where known (MLP: ~ its output's spread,
+    :data:`SPREAD_NOTE`), and the description's value; then the conditioning (cut-off and
+    why, rows used and dropped) and the friction model."""
     head = f"{'parameter':10s} {'YAML':>10s}"
     for m in methods:
         label = m.upper() if result.results[m].converged else f"{m.upper()} (not converged)"
@@ -60,6 +68,8 @@ def table(result, methods, description=None) -> str:
             r = result.results[m]
             if r.std is not None:
                 cell = f"{r.theta[k]:.4g} +- {r.std[k]:.2g}"
+            elif r.output_spread is not None:
+                cell = f"{r.theta[k]:.4g} ~ {r.output_spread[k]:.2g}"
             else:
                 cell = f"{r.theta[k]:.4g}"
             line += f" {cell:>21s}"
@@ -73,6 +83,8 @@ def table(result, methods, description=None) -> str:
         f"rows {result.rows}, cut-off {result.cutoff_hz:.3g} Hz, cond(A) {result.cond:.4g}, "
         f"effort in {unit}; d_tau {fit}; stacked error {stacked}"
     )
+    if any(result.results[m].output_spread is not None for m in methods):
+        lines.append(SPREAD_NOTE)
     for motor in result.motors:
         lines.append(
             f"motor {motor.joint}: R {motor.resistance:.4g} +- {motor.resistance_std:.2g} ohm, "
@@ -103,6 +115,9 @@ def to_yaml_dict(result, description, log_path) -> dict:
                  "stacked_error": float(r.d_stacked), "converged": bool(r.converged)}  # fmt: skip
         if r.std is not None:
             entry["std"] = [float(x) for x in r.std]
+        if r.output_spread is not None:  # not a std: nothing that reads "std" may take it
+            entry["output_spread"] = [float(x) for x in r.output_spread]
+            entry["output_spread_is"] = SPREAD_NOTE.removeprefix("MLP ~: ")
         out["methods"][m] = entry
     if result.motors:
         out["motors"] = [

@@ -278,6 +278,8 @@ def parameter_table(result, reference=None, reference_label="reference") -> str:
                 if reference and reference.get(name) is not None and r.std[k] > 0:
                     z = (r.theta[k] - reference[name]) / r.std[k]
                     text += f" <span class='z'>({_fmt(z, 2)} &sigma;)</span>"
+            elif r.output_spread is not None:  # not a std: no +-, no distance in sigma
+                text += f" <span class='z'>(spread {_fmt(r.output_spread[k], 2)})</span>"
             cells.append(f"<td>{text}</td>")
         cells.append(f"<td class='formula'>{_esc(result.formulas[k])}</td>")
         rows.append("<tr>" + "".join(cells) + "</tr>")
@@ -297,6 +299,11 @@ def parameter_table(result, reference=None, reference_label="reference") -> str:
         caption += f" The bar and the verdict use {_esc(base.method.upper())}."
     if reference:
         caption += f" (&sigma;): the estimate's distance from the {_esc(reference_label)} in std."
+    if any(r.output_spread is not None for r in result.results.values()):
+        caption += (
+            " MLP (spread): the spread of the network's output over the rows, not an "
+            "uncertainty of its estimate."
+        )
     return _wide_table(rows) + f"<p class='caption'>{caption}</p>"
 
 

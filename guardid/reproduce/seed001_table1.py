@@ -256,8 +256,8 @@ def run(seed: int = 0, exact_acceleration: bool = False) -> Report:
         f"LS: cond(A) = {ls.cond_:.1f}, residual rms = {ls.residual_rms_:.4f} N m, "
         f"std = {_vec(ls.std_, 5)}",
         f"MLP: {mlp.n_epochs_} epochs, torque mse {mlp.loss_:.4f} N^2 m^2 (target"
-        f" {mlp.target:g} {'reached' if mlp.converged_ else 'not reached'}),"
-        f" spread of the network output over the samples = {_vec(mlp.std_, 5)}",
+        f" {mlp.target:g} {'reached' if mlp.target_reached_ else 'not reached'}),"
+        f" spread of the network output over the samples = {_vec(mlp.output_spread_, 5)}",
         "paper NN column read from Table 1's differences (its estimate column is garbled for"
         f" th2 and th5: printed {', '.join(PAPER_NN_ESTIMATE_PRINTED)})",
     )
@@ -271,7 +271,7 @@ def run(seed: int = 0, exact_acceleration: bool = False) -> Report:
         "cutoff_hz": meas.get("cutoff_hz"),
         "rows_used": int(mask.sum()),
         "lam_max_factor": 2 * GRAD_ETA * DT * lam_max,
-        "mlp_spread": mlp.std_,
+        "mlp_spread": mlp.output_spread_,
         "mlp_epochs": mlp.n_epochs_,
     }
     rep.series = {
