@@ -19,7 +19,7 @@ import synthetic
 
 from guardid.closedloop.fit import closed_loop_fit, iv_solve
 from guardid.estimators import WeightedLeastSquares
-from guardid.identify import identify
+from guardid.identify import IdentifyOptions, identify, run_from_arrays
 from guardid.online import ChangeDetector, DetectorSettings
 from guardid.online.detector import Alarm
 from guardid.online.tracker import OnlineIdentifier
@@ -169,8 +169,8 @@ def test_negative_rotor_inertia_is_flagged_and_bls_keeps_it_at_zero():
         t, q, tau = synthetic.log(500, 0.5, 5.0, 5, duration_s=20.0)
     finally:
         synthetic.P.update(saved)
-    r = identify(t, q, tau, load_robot("dfki_double_pendulum"), methods=("ls", "bls"),
-                 effort_is_torque=True)  # fmt: skip
+    run = run_from_arrays(t, q, tau, torque=True)
+    r = identify([run], load_robot("dfki_double_pendulum"), IdentifyOptions(methods=("ls", "bls")))
     k = r.names.index("Ia2")
     ls = r.results["ls"]
     assert ls.theta[k] < -5 * ls.std[k]  # clearly negative

@@ -17,7 +17,7 @@ from test_mlp import linear_model
 
 from guardid.estimators import MLP
 from guardid.estimators.mlp import PLATEAU_REL, last_improvement, loss_plateau
-from guardid.identify import identify
+from guardid.identify import IdentifyOptions, identify, run_from_arrays
 from guardid.identify.pipeline import reference_method
 from guardid.identify.report import read_params, table, to_yaml_dict
 from guardid.identify.validation import params_sets
@@ -30,7 +30,8 @@ PENDULUM = load_robot("dfki_double_pendulum")
 @pytest.fixture(scope="module")
 def pendulum_fit():
     t, q, tau = synthetic.log(500, 0.5, 5.0, 8, duration_s=20.0)
-    return identify(t, q, tau, PENDULUM, methods=("wls", "mlp"), effort_is_torque=True)
+    run = run_from_arrays(t, q, tau, torque=True)
+    return identify([run], PENDULUM, IdentifyOptions(methods=("wls", "mlp")))
 
 
 def test_output_spread_is_the_std_of_the_network_output_over_the_rows():
