@@ -161,6 +161,7 @@ def _capture(
         duration = UNTIL_STD_CAP_S
     if duration is None:
         duration = (periods or 1) * trajectory.period
+    _check_room(output, duration, description)
     check_trajectory(trajectory, description, duration, trajectory_path)
     tracker = _tracker(online, description, trajectory, online_effort)
     live = None
@@ -219,6 +220,40 @@ def _capture(
     finally:
         serial_port.close()
     return result, tracker, live
+
+
+ROW_BYTES_BASE, ROW_BYTES_PER_JOINT = 30, 60
+"""A log row's size at most [bytes]: tick, time and status, plus per joint counts, angle,
+voltage, current and setpoint as :class:`guardid.log.LogWriter` formats them."""
+
+
+def _check_room(output, duration_s: float, description) -> None:
+    """ConfigError when the log of a ``duration_s`` [s] capture would not fit in the free
+    space of ``output``'s file system (``--duration 1e9``: terabytes)."""
+    import shutil
+    from pathlib import Path
+
+    folder = Path(output).parent
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError:
+        return  # checked by check_output already; nothing more to say
+    rows = duration_s / description.sample_period
+    need = rows * (ROW_BYTES_BASE + ROW_BYTES_PER_JOINT * len(description.joints))
+    if need > free:
+        raise ConfigError(
+            f"--duration {duration_s:g} s: the log {output} would need about "
+            f"{_size(need)}, {_size(free)} free in {folder}"
+        )
+
+
+def _size(n_bytes: float) -> str:
+    unit = "B"
+    for unit in ("B", "kB", "MB", "GB", "TB"):
+        if n_bytes < 1000 or unit == "TB":
+            break
+        n_bytes /= 1000
+    return f"{n_bytes:.3g} {unit}"
 
 
 def _progress(c: dict) -> None:

@@ -60,6 +60,8 @@ class Pid:
 
 def run(robot: str, duration: float, seed: int, payload, noise: bool = True):
     """Simulate; yield (sample, setpoint) per tick. Raises GuardidError subclasses."""
+    import numpy as np
+
     from guardid.plant import Plant, PlantError
     from guardid.robot import load_robot
 
@@ -72,7 +74,14 @@ def run(robot: str, duration: float, seed: int, payload, noise: bool = True):
     pids = [Pid(j.pid, plant.dt, j.drive.supply_voltage) for j in joints]
     volts = [0.0] * len(joints)
     for _ in range(int(round(duration / plant.dt))):
-        sample = plant.step(volts)
+        with np.errstate(all="ignore"):  # a diverging plant is reported below, in one line
+            sample = plant.step(volts)
+        if not all(math.isfinite(x) for x in (*sample.q, *sample.qd)):
+            raise PlantError(
+                f"{description.source or description.name}: the simulation diverged at "
+                f"t = {sample.time:.3f} s (joint state not finite); check the masses, "
+                "inertias and drives"
+            )
         setpoint = ref(sample.time)
         volts = [pid(r - q) for pid, r, q in zip(pids, setpoint, sample.q_sensed, strict=True)]
         yield description, sample, setpoint
