@@ -283,6 +283,20 @@ def test_a_disk_error_starts_on_its_own_line_after_the_progress(tmp_path, monkey
     assert res.stderr.count(ERROR_PREFIX) == 1
 
 
+def test_a_link_error_starts_on_its_own_line_after_the_progress(tmp_path):
+    """A port that vanishes mid-capture: the progress line is ended first, then one error
+    line (exit 3) saying how many rows were kept."""
+    traj = gentle_trajectory(tmp_path / "t.yaml")
+    port = "sim://guard?disconnect_s=1"
+    res = invoke("capture", "--trajectory", traj, "--duration", "5", "--port", port,
+                 "-o", tmp_path / "r.csv")  # fmt: skip
+    assert res.exit_code == 3, res.stderr
+    lines = res.stderr.split("\n")
+    assert lines[-1] == "" and lines[-2].startswith(ERROR_PREFIX), res.stderr
+    assert "disconnected" in lines[-2] and "rows kept in" in lines[-2]
+    assert res.stderr.count(ERROR_PREFIX) == 1 and lines[-3].startswith("\rrows")
+
+
 def _readme_job() -> str:
     """The README's main job without its venv set-up, for this interpreter; shortened (the
     starting guess, 10 s, least squares) where only the time it takes changes."""
