@@ -212,6 +212,7 @@ ROWS = [
     ("simulate-o-existing", "simulate --duration 0.1 -o {existing.csv}", 2, ["-o", "existing.csv", "already exists (give --force"]),
     ("export-urdf-existing", "export --robot guard --urdf {existing.urdf}", 2, ["--urdf", "existing.urdf", "already exists (give --force"]),
     ("export-mjcf-existing", "export --robot guard --mjcf {existing.xml}", 2, ["--mjcf", "existing.xml", "already exists (give --force"]),
+    ("export-mjcf-is-urdf-side", "export --robot guard --urdf {z.urdf} --mjcf {z.guardid.yaml}", 2, ["--mjcf", "z.guardid.yaml", "also --urdf"]),
     ("capture-o-existing", "capture --trajectory {traj} --duration 1 -o {existing.csv}", 2, ["-o", "existing.csv", "already exists (give --force"]),
     # ... and is checked writable before any work starts
     ("identify-o-missing-dir", "identify {garbage.yaml} -o {nodir/p.yaml}", 2, ["-o", "nodir", "does not exist"]),

@@ -60,7 +60,7 @@ def export(params, robot, urdf_path, mjcf_path, force):
     Rotor inertia and the friction offset, which URDF has no field for, go to the side YAML
     beside the URDF; see docs/URDF.md for every field.
     """
-    from guardid.commands.outputs import check_output, robot_file, same_file, write_text
+    from guardid.commands.outputs import check_distinct, check_output, robot_file, write_text
     from guardid.export import mjcf_text, side_path, urdf_texts
     from guardid.robot import ChainDescription, load_robot
 
@@ -71,8 +71,7 @@ def export(params, robot, urdf_path, mjcf_path, force):
     outputs.append(("--mjcf", mjcf_path))
     for option, path in outputs:
         check_output(path, inputs, option=option, force=force)
-    if urdf_path and mjcf_path and same_file(urdf_path, mjcf_path):
-        raise ConfigError(f"--mjcf {mjcf_path}: is also --urdf; give each its own file")
+    check_distinct(outputs)
     if params:
         description = consistent_description(params, robot)
     elif robot:

@@ -95,7 +95,7 @@ def _check_outputs(logs, robot, foreign, force=False, **outputs) -> None:
     """ConfigError when -o, --plot or --report names one of the inputs (a log, the robot or
     mapping YAML), an existing file (without --force) or a place that cannot be written:
     checked before any work starts (guardid.commands.outputs)."""
-    from guardid.commands.outputs import check_output, robot_file, same_file
+    from guardid.commands.outputs import check_distinct, check_output, robot_file
 
     inputs = [("LOG", x) for x in logs] + [("--robot", robot_file(robot))]
     inputs += [("--columns", c) for c in foreign.get("columns") or () if Path(c).is_file()]
@@ -106,11 +106,7 @@ def _check_outputs(logs, robot, foreign, force=False, **outputs) -> None:
     ]
     for option, path in paths:
         check_output(path, inputs, option=option, force=force)
-    named = [(o, p) for o, p in paths if p is not None]
-    for k, (option, path) in enumerate(named):
-        for other, earlier in named[:k]:
-            if same_file(path, earlier):
-                raise ConfigError(f"{option} {path}: is also {other}; give each its own file")
+    check_distinct(paths)
 
 
 _CONSISTENT_HELP = (

@@ -87,6 +87,16 @@ def check_output(
     _probe(Path(output), option)
 
 
+def check_distinct(outputs: Iterable[tuple[str, object]]) -> None:
+    """ConfigError when two of ``outputs`` (pairs of option name and path; None skipped)
+    name the same file: one would overwrite the other."""
+    named = [(option, path) for option, path in outputs if path is not None]
+    for k, (option, path) in enumerate(named):
+        for other, earlier in named[:k]:
+            if same_file(path, earlier):
+                raise ConfigError(f"{option} {path}: is also {other}; give each its own file")
+
+
 def check_new_directory_files(directory, option: str, force: bool = False) -> None:
     """For an option naming a directory of outputs (``reproduce --plot DIR``): ConfigError
     when DIR is a file, holds files already (without ``force``), or cannot be written in.
