@@ -329,3 +329,14 @@ def test_readme_main_job_runs_twice_into_its_own_folders(tmp_path):
     for run in runs:
         assert sorted(p.name for p in run.iterdir()) == ["params.yaml", "run.csv", "traj.yaml"]
     assert "/out/" in (REPO / ".gitignore").read_text().split()
+
+
+def test_capture_room_estimate_covers_a_real_row(a_run):
+    """capture's free-space check (--duration 1e9: terabytes, refused before anything
+    moves) estimates a row's bytes from above: every row of a real log fits it."""
+    from guardid.commands.capture import ROW_BYTES_BASE, ROW_BYTES_PER_JOINT
+
+    rows = [x for x in a_run.read_text().splitlines(keepends=True) if x[:1].isdigit()]
+    assert len(rows) > 600
+    widest = max(len(x.encode()) for x in rows)
+    assert widest + 8 <= ROW_BYTES_BASE + 2 * ROW_BYTES_PER_JOINT  # + room for longer ticks

@@ -229,10 +229,14 @@ voltage, current and setpoint as :class:`guardid.log.LogWriter` formats them."""
 
 def _check_room(output, duration_s: float, description) -> None:
     """ConfigError when the log of a ``duration_s`` [s] capture would not fit in the free
-    space of ``output``'s file system (``--duration 1e9``: terabytes)."""
+    space of ``output``'s file system (``--duration 1e9``: terabytes). Not for a device or
+    a pipe given with --force (the log goes elsewhere)."""
     import shutil
+    import stat
     from pathlib import Path
 
+    if os.path.exists(output) and not stat.S_ISREG(os.stat(output).st_mode):
+        return
     folder = Path(output).parent
     try:
         free = shutil.disk_usage(folder).free
