@@ -178,14 +178,18 @@ def _arrays(runs):
     help="Write the parameters to this YAML file (an existing file only with --force).",
 )
 @click.option(
-    "--plot", "plot_path", default=None, help="Write a PNG report (matplotlib; as -o for --force)."
+    "--plot",
+    "plot_path",
+    default=None,
+    help="Write a PNG report (matplotlib; an existing file only with --force).",
 )
 @click.option(
     "--report",
     "report_path",
     default=None,
     help="Write a self-contained HTML report (verdict, parameters, fit, residual spectrum, "
-    "online estimators, conditioning, motors; needs matplotlib).",
+    "online estimators, conditioning, motors; needs matplotlib; an existing file only with "
+    "--force).",
 )
 @click.option("--parallel-filter", "parallel_hz", type=float, default=None, help=_PARALLEL_HELP)
 @click.option("--consistent", is_flag=True, help=_CONSISTENT_HELP)
@@ -196,7 +200,7 @@ def _arrays(runs):
     "score the held-out run (stacked relative rms error), print the table.",
 )
 @force_option(
-    "existing output files (-o, --plot, --report)",
+    "existing output files: -o, --plot, --report",
     more=", and report and write the parameters even when the identification cannot be "
     "trusted (zero, rank-deficient or nearly unexcited regressor, non-finite estimates; exit "
     "4 without it)",
@@ -386,7 +390,8 @@ def _cross_validate(logs, runs, description, methods, options, current_units, be
     "report_path",
     default=None,
     help="Write a self-contained HTML report: the scores per run and set, measured and "
-    "predicted effort of the best set, residual spectra (needs matplotlib).",
+    "predicted effort of the best set, residual spectra (needs matplotlib; an existing file "
+    "only with --force).",
 )
 @force_option("an existing --report file")
 @_foreign_options
