@@ -75,7 +75,8 @@ def _drop_columns(text: str, names) -> str:
 def _issue26_files(d: Path, f: Files, guard_yaml: str) -> None:
     """Existing outputs of every kind, params files a validate crashed on, a trajectory
     naming the robot's joints in the other order, a robot with a 1e308 kg link."""
-    for name in ("existing.yaml", "existing.png", "existing.urdf", "existing.xml"):
+    for name in ("existing.yaml", "existing.png", "existing.urdf", "existing.xml",
+                 "fresh.online.csv"):  # fmt: skip
         (d / name).write_text("a file the user keeps\n")
     (d / "existing.html").write_text("<!doctype html><p>a report the user keeps</p>\n")
     p = yaml.safe_load(f.params.read_text())
@@ -213,6 +214,7 @@ ROWS = [
     ("export-urdf-existing", "export --robot guard --urdf {existing.urdf}", 2, ["--urdf", "existing.urdf", "already exists (give --force"]),
     ("export-mjcf-existing", "export --robot guard --mjcf {existing.xml}", 2, ["--mjcf", "existing.xml", "already exists (give --force"]),
     ("export-mjcf-is-urdf-side", "export --robot guard --urdf {z.urdf} --mjcf {z.guardid.yaml}", 2, ["--mjcf", "z.guardid.yaml", "also --urdf"]),
+    ("capture-online-output-existing", "capture --trajectory {traj} --duration 1 --online rls -o {fresh.csv}", 2, ["--online output", "fresh.online.csv", "already exists (give --force"]),
     ("capture-o-existing", "capture --trajectory {traj} --duration 1 -o {existing.csv}", 2, ["-o", "existing.csv", "already exists (give --force"]),
     # ... and is checked writable before any work starts
     ("identify-o-missing-dir", "identify {garbage.yaml} -o {nodir/p.yaml}", 2, ["-o", "nodir", "does not exist"]),

@@ -189,6 +189,29 @@ def test_excite_signalled_while_optimising(tmp_path, monkeypatch):
     assert _files(tmp_path) == set()
 
 
+@pytest.mark.parametrize("signum", SIGNALS, ids=lambda s: signal.Signals(s).name)
+def test_capture_signalled_while_its_module_loads(tmp_path, monkeypatch, signum):
+    """The first instant of a command, before the capture's own handlers: the CLI's handler
+    ends it with one line and 128 + n (was: Aborted!, exit 1; SIGTERM: no word)."""
+    import importlib
+
+    import guardid.cli
+
+    real = importlib.import_module
+
+    def import_module(name, *args):
+        if name == "guardid.commands.capture":
+            os.kill(os.getpid(), signum)
+        return real(name, *args)
+
+    monkeypatch.setattr(guardid.cli.importlib, "import_module", import_module)
+    traj = gentle_trajectory(tmp_path / "t.yaml")
+    res = invoke("capture", "--trajectory", traj, "-o", tmp_path / "r.csv")
+    assert res.exit_code == 128 + signum, res.stderr
+    assert res.stderr.splitlines() == [f"guardid: interrupted ({signal.Signals(signum).name})"]
+    assert _files(tmp_path) == {"t.yaml"}
+
+
 def test_a_signal_after_the_command_is_the_callers_again(tmp_path):
     """The handlers are the CLI's only while a command runs: afterwards the process's own
     (here pytest's default SIGINT handler) are back."""
