@@ -52,13 +52,16 @@ def a_run(tmp_path_factory):
 
 class FullDisk:
     """``open`` for guardid.commands.outputs whose files take ``room`` bytes, then fail
-    with ENOSPC (as a full file system does: a short write, then the error)."""
+    with ENOSPC (as a full file system does: a short write, then the error); only files
+    whose name ends with ``suffix``, when given (the disk fills at that file)."""
 
-    def __init__(self, room: int) -> None:
-        self.room = room
+    def __init__(self, room: int, suffix: str = "") -> None:
+        self.room, self.suffix = room, suffix
 
     def __call__(self, path, mode="r", **kwargs):
         f = open(path, mode, **kwargs)  # noqa: SIM115
+        if not str(path).endswith(self.suffix):
+            return f
         room = self.room
 
         class Full:
@@ -94,12 +97,15 @@ def test_identify_on_a_full_disk_is_one_line_and_leaves_nothing(tmp_path, a_run,
     assert _files(tmp_path) == {"params.yaml": b"kept\n"}
 
 
-def test_export_on_a_full_disk_then_again_when_there_is_room(tmp_path, monkeypatch):
-    """Was: zero-byte files, and a rerun refused them ('exists')."""
+@pytest.mark.parametrize("fills_at", ["", ".urdf", ".xml"])
+def test_export_on_a_full_disk_then_again_when_there_is_room(tmp_path, monkeypatch, fills_at):
+    """Was: zero-byte files, and a rerun refused them ('exists'). The disk fills at the
+    first file (the side YAML), the URDF or the MJCF: no file at all is left (a side YAML
+    alone would make the rerun refuse it)."""
     urdf = tmp_path / "r.urdf"
-    monkeypatch.setattr(outputs, "open", FullDisk(0), raising=False)
+    monkeypatch.setattr(outputs, "open", FullDisk(0, fills_at), raising=False)
     res = invoke("export", "--robot", "guard", "--urdf", urdf, "--mjcf", tmp_path / "r.xml")
-    _one_error(res, 2, "--urdf", "No space left on device")
+    _one_error(res, 2, "No space left on device")
     assert _files(tmp_path) == {}
     monkeypatch.undo()
     res = invoke("export", "--robot", "guard", "--urdf", urdf, "--mjcf", tmp_path / "r.xml")

@@ -60,7 +60,7 @@ def export(params, robot, urdf_path, mjcf_path, force):
     Rotor inertia and the friction offset, which URDF has no field for, go to the side YAML
     beside the URDF; see docs/URDF.md for every field.
     """
-    from guardid.commands.outputs import check_distinct, check_output, robot_file, write_text
+    from guardid.commands.outputs import check_distinct, check_output, robot_file, write_texts
     from guardid.export import mjcf_text, side_path, urdf_texts
     from guardid.robot import ChainDescription, load_robot
 
@@ -80,11 +80,14 @@ def export(params, robot, urdf_path, mjcf_path, force):
             raise ConfigError(f"--robot {robot}: only serial chains export")
     else:
         raise click.UsageError("give PARAMS (from identify --consistent) or --robot")
+    texts = []
     if urdf_path:
         urdf, side = urdf_texts(description, urdf_path)
-        write_text(side_path(urdf_path), side, "--urdf")
-        write_text(urdf_path, urdf, "--urdf")
+        texts += [(side_path(urdf_path), side, "--urdf"), (urdf_path, urdf, "--urdf")]
+    if mjcf_path:
+        texts.append((mjcf_path, mjcf_text(description), "--mjcf"))
+    write_texts(texts)  # all or none
+    if urdf_path:
         click.echo(f"wrote {urdf_path} and {side_path(urdf_path)}")
     if mjcf_path:
-        write_text(mjcf_path, mjcf_text(description), "--mjcf")
         click.echo(f"wrote {mjcf_path}")

@@ -204,10 +204,22 @@ def _commit(tmp: Path, target: Path, mode: int) -> None:
 
 def write_text(output, text: str, option: str = "-o") -> None:
     """Write ``text`` (UTF-8) to ``output`` by :func:`replacing`."""
-    with replacing(output, option) as tmp:
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
+    write_texts([(output, text, option)])
+
+
+def write_texts(items: Iterable[tuple[object, str, str]]) -> None:
+    """Write several files, (output, text, option) each, all or none: each text goes to its
+    temporary file and is fsynced before the next; only when all are written are they
+    renamed into place (a URDF and its side YAML: never one without the other after a
+    full disk, which would make a rerun refuse the one left)."""
+    with contextlib.ExitStack() as stack:
+        for output, text, option in items:
+            tmp = stack.enter_context(replacing(output, option))
+            with open(tmp, "w", encoding="utf-8") as fh:
+                fh.write(text)
+                fh.flush()
+                if _regular(tmp):
+                    os.fsync(fh.fileno())
 
 
 def robot_file(robot) -> str | None:
