@@ -62,7 +62,7 @@ def collect(excitation: str, seeds, duration: float, methods: str, work: Path, p
     ``identify_args``: more options for ``guardid identify`` (e.g. ``--cutoff 8``)."""
     traj = work / f"traj_{excitation}.yaml"
     if not (reuse and traj.exists()):
-        _guardid("excite", "--robot", "guard", "-o", str(traj), *EXCITATIONS[excitation])
+        _guardid("excite", "--robot", "guard", "--force", "-o", str(traj), *EXCITATIONS[excitation])
     out: dict[str, dict] = {}
     for seed in seeds:
         log = work / f"{excitation}_{seed}.csv"
