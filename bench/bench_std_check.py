@@ -113,7 +113,7 @@ def trajectory(work: Path, s: Set, reuse: bool) -> Path:
     key = "_".join([Path(s.robot).stem, *(a.lstrip("-") for a in s.excite)]) or "default"
     traj = work / f"traj_{key}.yaml"
     if not (reuse and traj.exists()):
-        err = _guardid("excite", "--robot", s.robot, "-o", str(traj), *s.excite)
+        err = _guardid("excite", "--robot", s.robot, "--force", "-o", str(traj), *s.excite)
         if err:
             raise SystemExit(f"guardid excite for {key} failed: {err}")
     return traj

@@ -1,15 +1,17 @@
 # ruff: noqa: E501  (the matrix reads best one row per line)
-"""The bad-input matrix: every case a user met (issue 15, "What was seen") -> exit code and
-one ``guardid: error:`` line naming the file, field, option or port; no traceback.
+"""The bad-input matrix: every case a user met (issues 15 and 26, "What was seen") -> exit
+code and one ``guardid: error:`` line naming the file, field, option or port; no traceback;
+no file in the module's folder created or changed.
 
-Each row: an id, the command line (built from the module's files), the expected exit code
-and the words the error line must contain.
+Each row: an id, the command line (built from the module's files; ``''`` is an empty
+argument), the expected exit code and the words the error line must contain.
 Runs in-process (click's CliRunner); one row goes through the real ``python -m guardid``.
 """
 
 from __future__ import annotations
 
 import gzip
+import hashlib
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -70,6 +72,36 @@ def _drop_columns(text: str, names) -> str:
     return "".join(lines)
 
 
+def _issue26_files(d: Path, f: Files, guard_yaml: str) -> None:
+    """Existing outputs of every kind, params files a validate crashed on, a trajectory
+    naming the robot's joints in the other order, a robot with a 1e308 kg link."""
+    for name in ("existing.yaml", "existing.png", "existing.urdf", "existing.xml",
+                 "fresh.online.csv"):  # fmt: skip
+        (d / name).write_text("a file the user keeps\n")
+    (d / "existing.html").write_text("<!doctype html><p>a report the user keeps</p>\n")
+    p = yaml.safe_load(f.params.read_text())
+    p["methods"]["ls"]["values"][2] = "abc"
+    (d / "params_str.yaml").write_text(yaml.safe_dump(p, sort_keys=False))
+    p = yaml.safe_load(f.params.read_text())
+    p["methods"] = {}
+    (d / "params_nomethod.yaml").write_text(yaml.safe_dump(p, sort_keys=False))
+    t = yaml.safe_load(f.traj.read_text())
+    t["joints"] = list(reversed(t["joints"]))
+    (d / "swapped_names.yaml").write_text(yaml.safe_dump(t))
+    heavy = yaml.safe_load(guard_yaml)
+    heavy["links"][1]["mass"] = 1e308
+    (d / "heavy.yaml").write_text(yaml.safe_dump(heavy, sort_keys=False))
+
+
+def _snapshot(d: Path) -> dict[str, str]:
+    """Every file under ``d`` (hidden ones too: a temporary file left behind) -> digest."""
+    return {
+        str(p.relative_to(d)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(d.rglob("*"))
+        if p.is_file()
+    }
+
+
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("badinput")
@@ -114,6 +146,7 @@ def files(tmp_path_factory):
         res = invoke("capture", "--trajectory", d / "still.yaml", "--duration", 10, "--quiet",
                      "-o", d / "still.csv")  # fmt: skip
         assert res.exit_code == 0, res.output
+        _issue26_files(d, f, guard)
         big = yaml.safe_load(f.traj.read_text())
         big["a"] = [[10 * x for x in row] for row in big["a"]]
         big["b"] = [[10 * x for x in row] for row in big["b"]]
@@ -170,13 +203,51 @@ ROWS = [
     pytest.param("capture-overwrites-a-log", "capture --trajectory {traj} --duration 1 --quiet -o {existing.csv}", 2, ["existing.csv"]),
     pytest.param("capture-trajectory-10x", "capture --trajectory {big.yaml} --duration 1 -o {c10.csv}", 2, ["big.yaml", "beyond its limit", "nothing moved"]),
     pytest.param("identify-output-is-input", "identify {own.csv} --method ls -o {own.csv}", 2, ["own.csv"]),
+    # issue 26: every output refuses an existing file unless --force, in the same words
+    ("excite-o-existing", "excite --no-optimise -o {existing.yaml}", 2, ["-o", "existing.yaml", "already exists (give --force to replace it)"]),
+    ("identify-o-existing", "identify {run} --method ls -o {existing.yaml}", 2, ["-o", "existing.yaml", "already exists (give --force to replace it)"]),
+    ("identify-plot-existing", "identify {run} --method ls --plot {existing.png}", 2, ["--plot", "existing.png", "already exists (give --force"]),
+    ("identify-report-existing", "identify {run} --method ls --report {existing.html}", 2, ["--report", "existing.html", "already exists (give --force"]),
+    ("identify-o-is-plot", "identify {run} --method ls -o {new.yaml} --plot {new.yaml}", 2, ["--plot", "new.yaml", "also -o"]),
+    ("validate-report-existing", "validate {run} --params {params} --report {existing.html}", 2, ["--report", "existing.html", "already exists (give --force"]),
+    ("simulate-o-existing", "simulate --duration 0.1 -o {existing.csv}", 2, ["-o", "existing.csv", "already exists (give --force"]),
+    ("export-urdf-existing", "export --robot guard --urdf {existing.urdf}", 2, ["--urdf", "existing.urdf", "already exists (give --force"]),
+    ("export-mjcf-existing", "export --robot guard --mjcf {existing.xml}", 2, ["--mjcf", "existing.xml", "already exists (give --force"]),
+    ("export-mjcf-is-urdf-side", "export --robot guard --urdf {z.urdf} --mjcf {z.guardid.yaml}", 2, ["--mjcf", "z.guardid.yaml", "also --urdf"]),
+    ("capture-online-output-existing", "capture --trajectory {traj} --duration 1 --online rls -o {fresh.csv}", 2, ["--online output", "fresh.online.csv", "already exists (give --force"]),
+    ("capture-o-existing", "capture --trajectory {traj} --duration 1 -o {existing.csv}", 2, ["-o", "existing.csv", "already exists (give --force"]),
+    # ... and is checked writable before any work starts
+    ("identify-o-missing-dir", "identify {garbage.yaml} -o {nodir/p.yaml}", 2, ["-o", "nodir", "does not exist"]),
+    ("identify-o-under-a-file", "identify {run} -o {params.yaml/p.yaml}", 2, ["-o", "params.yaml", "not a directory"]),
+    ("identify-o-is-a-directory", "identify {run} -o {.}", 2, ["-o", "is a directory"]),
+    ("excite-o-missing-dir", "excite -o {nodir/t.yaml}", 2, ["-o", "nodir", "does not exist"]),
+    ("simulate-o-missing-dir", "simulate -o {nodir/s.csv}", 2, ["-o", "nodir", "does not exist"]),
+    ("export-urdf-missing-dir", "export --robot guard --urdf {nodir/r.urdf}", 2, ["--urdf", "nodir", "does not exist"]),
+    ("capture-o-missing-dir", "capture --trajectory {traj} --duration 1 -o {nodir/r.csv}", 2, ["-o", "nodir", "does not exist"]),
+    # issue 26: tracebacks
+    ("validate-params-string-value", "validate {run} --params {params_str.yaml}", 2, ["params_str.yaml", "methods.ls.values[2]", "'abc' is not a number"]),
+    ("validate-params-no-method", "validate {run} --params {params_nomethod.yaml}", 2, ["params_nomethod.yaml", "methods", "empty"]),
+    ("identify-method-empty", "identify {run} --method '' -o {p_empty.yaml}", 2, ["--method", "no method"]),
+    ("capture-duration-1e9", "capture --trajectory {traj} --duration 1e9 -o {c.csv}", 2, ["--duration", "free", "c.csv"]),
+    ("capture-timeout-0", "capture --trajectory {traj} --timeout 0 -o {c.csv}", 2, ["--timeout"]),
+    # issue 26: nonsense that went on with exit 0
+    ("capture-periods-0", "capture --trajectory {traj} --periods 0 -o {c.csv}", 2, ["--periods", "0"]),
+    ("capture-port-empty", "capture --trajectory {traj} --port '' --duration 1 -o {c.csv}", 2, ["--port", "empty"]),
+    ("capture-baud-0", "capture --trajectory {traj} --baud 0 --duration 1 -o {c.csv}", 2, ["--baud", "0"]),
+    ("capture-joint-names-swapped", "capture --trajectory {swapped_names.yaml} --duration 1 -o {c.csv}", 2, ["swapped_names.yaml", "joints: tilt, pan", "pan, tilt", "nothing moved"]),
+    ("excite-link-mass-1e308", "excite --robot {heavy.yaml} -o {x.yaml}", 2, ["heavy.yaml", "links[1].mass", "1e+308"]),
+    ("simulate-link-mass-1e308", "simulate --robot {heavy.yaml} --duration 0.1 -o {s.csv}", 2, ["heavy.yaml", "links[1].mass"]),
+    # issue 26: a bad sim:// option is bad input (2), not a link failure (3)
+    ("capture-sim-seed-abc", "capture --trajectory {traj} --port sim://guard?seed=abc --duration 1 -o {c.csv}", 2, ["sim://guard?seed=abc", "seed", "abc"]),
 ]  # fmt: skip
 
 
 def _argv(template: str, files: Files) -> list[str]:
     out = []
     for word in template.split():
-        if word.startswith("{") and word.endswith("}"):
+        if word == "''":
+            word = ""
+        elif word.startswith("{") and word.endswith("}"):
             key = word[1:-1]
             word = str(getattr(files, key) if key in ("run", "params", "traj") else files / key)
         out.append(word)
@@ -189,8 +260,10 @@ def _row_id(row):
 
 @pytest.mark.parametrize(("name", "template", "code", "words"), ROWS, ids=map(_row_id, ROWS))
 def test_bad_input_is_one_line(files, name, template, code, words):
+    before = _snapshot(files.d)
     with one_blas_thread():
         result = invoke(*_argv(template, files))
+    assert _snapshot(files.d) == before, "a file was created or changed"
     exc = result.exception
     assert exc is None or isinstance(exc, SystemExit), f"{type(exc).__name__}: {exc}"
     assert result.exit_code == code, (result.exit_code, result.stderr)

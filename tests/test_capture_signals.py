@@ -1,5 +1,5 @@
-"""Ctrl-C (SIGINT) and SIGTERM stop a capture in every phase: the robot is put idle (seen
-on the robot's side) and the log, if the handshake had succeeded, gets its footer.
+"""Ctrl-C (SIGINT), SIGTERM and SIGHUP stop a capture in every phase: the robot is put idle
+(seen on the robot's side) and the log, if the handshake had succeeded, gets its footer.
 
 The signal is sent by the simulated robot itself at a seeded moment: when the k-th host
 frame arrives (the handshake and set-up: HELLO, SET_WATCHDOG, SET_PID, SET_MODE, PING,
@@ -29,6 +29,7 @@ from guardid.log import LogWriter
 from guardid.protocol import FrameParser
 
 LOCKSTEP_SEEDS = range(12)
+SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 GUARD_S = 120.0  # failure guards only, never the assertion
 SETUP = ("SET_WATCHDOG", "SET_PID", "PING")  # commands of the set-up before motion
 REALTIME_SEEDS = range(6)
@@ -39,9 +40,7 @@ def stray_signals():
     """Signals that reach the test process outside the capture's own handlers (must be
     none); keeps a stray SIGINT/SIGTERM from ending the test session."""
     seen = []
-    old = {
-        s: signal.signal(s, lambda n, f: seen.append(n)) for s in (signal.SIGINT, signal.SIGTERM)
-    }
+    old = {s: signal.signal(s, lambda n, f: seen.append(n)) for s in SIGNALS}
     yield seen
     for s, h in old.items():
         signal.signal(s, h)
@@ -51,7 +50,7 @@ def _moment(seed: int, realtime: bool):
     """(trigger, signal, --online or None): the phase cycles with the seed (handshake,
     set-up, motion, motion with the online estimators), the moment in it is drawn."""
     rng = random.Random(seed * 7919 + realtime)
-    signum = (signal.SIGINT, signal.SIGTERM)[rng.random() < 0.5]
+    signum = SIGNALS[rng.randrange(len(SIGNALS))]
     last_tick = 60 if realtime else 400
     phase = seed % 4
     trigger = [
@@ -145,7 +144,7 @@ def test_the_seeds_cover_every_phase():
     assert any(t == ("frame", 0) for t, _, _ in moments)  # HELLO: the handshake
     assert any(t[0] == "frame" and t[1] > 0 for t, _, _ in moments)
     assert any(t[0] == "tick" and o for t, _, o in moments)  # moving, estimators running
-    assert {s for _, s, _ in moments} == {signal.SIGINT, signal.SIGTERM}
+    assert {s for _, s, _ in moments} == set(SIGNALS)
 
 
 class SilentRobot:
@@ -178,7 +177,7 @@ class SilentRobot:
         pass
 
 
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+@pytest.mark.parametrize("signum", SIGNALS)
 def test_signal_stops_a_handshake_with_a_silent_robot(tmp_path, signum, stray_signals):
     """The capture waits for INFO (up to --timeout 30 s of simulated time); the signal
     ends the wait at once: the run reports the interruption, not the missing answer."""
@@ -228,3 +227,73 @@ def test_sigint_stops_a_capture_process_that_inherited_it_ignored(tmp_path):
     assert footer["ended"] == "interrupted" and footer["signal"] == signal.Signals(signum).name
     assert footer["rows"] == len(parse_rows(log, log_fields())) >= 20
     assert out.startswith("interrupted: ")
+
+
+def _capture_process(tmp_path, log, *extra, **popen):
+    traj = gentle_trajectory(tmp_path / "t.yaml")
+    cmd = [sys.executable, "-m", "guardid", "capture", "--trajectory", str(traj), "--duration",
+           "60", "--port", "sim://guard?pacing=realtime", "-o", str(log), *extra]  # fmt: skip
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **popen)
+
+
+def _wait_for_rows(proc, log, rows: int) -> None:
+    deadline = time.monotonic() + GUARD_S  # failure guard only
+    while time.monotonic() < deadline and proc.poll() is None:
+        if log.exists() and len(parse_rows(log, log_fields())) >= rows:
+            return
+        time.sleep(0.02)
+    raise AssertionError(f"no {rows} rows in {log}: {proc.poll()}")
+
+
+def test_sighup_ends_a_capture_process_like_sigterm(tmp_path):
+    """A closed terminal or a dropped ssh session (SIGHUP): the log gets its footer with
+    ``signal: SIGHUP``, the summary line is printed, exit 129 (128 + 1)."""
+    log = tmp_path / "run.csv"
+    proc = _capture_process(tmp_path, log)
+    _wait_for_rows(proc, log, 20)
+    proc.send_signal(signal.SIGHUP)
+    out, err = proc.communicate(timeout=GUARD_S)
+    assert proc.returncode == 128 + signal.SIGHUP, err
+    assert "Traceback" not in err
+    footer = footer_dict(log)
+    assert footer["ended"] == "interrupted" and footer["signal"] == "SIGHUP"
+    assert footer["rows"] == len(parse_rows(log, log_fields())) >= 20
+    assert out.startswith("interrupted: ")
+
+
+def test_nohup_leaves_sighup_ignored(tmp_path):
+    """Under ``nohup`` (SIGHUP inherited ignored) a SIGHUP does not stop the capture; a
+    SIGTERM afterwards does, with its own name in the footer."""
+    log = tmp_path / "run.csv"
+    proc = _capture_process(
+        tmp_path, log, preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    )
+    _wait_for_rows(proc, log, 10)
+    proc.send_signal(signal.SIGHUP)
+    rows_then = len(parse_rows(log, log_fields()))
+    _wait_for_rows(proc, log, rows_then + 20)  # still recording after the SIGHUP
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=GUARD_S)
+    assert proc.returncode == 128 + signal.SIGTERM, err
+    assert footer_dict(log)["signal"] == "SIGTERM"
+
+
+def test_interrupted_long_capture_counts_lost_rows_of_the_ticks_reached(tmp_path):
+    """Stopped during the set-up of a 100000 s capture, after the log exists: the summary
+    says 0 rows, 0 lost (not the 6666667 ticks planned) and no rms figure (was 'nan'); the
+    footer's ticks_expected is the ticks reached, 0."""
+    traj = gentle_trajectory(tmp_path / "t.yaml")
+    log = tmp_path / "run.csv"
+    args = ["capture", "--trajectory", str(traj), "--duration", "100000", "-o", str(log),
+            "--quiet"]  # fmt: skip
+    with witnessed(("frame", 2), signal.SIGINT) as robots:
+        res = CliRunner().invoke(main, args)
+    (robot,) = robots
+    assert res.exit_code == 130, res.output
+    assert robot.fw.mode == IDLE
+    assert log.exists(), res.output  # the signal came after the log was opened
+    line = res.stdout.strip()
+    assert line.startswith("interrupted: 0 rows in ") and "(0 lost)" in line, line
+    assert "nan" not in line and "no rows" in line, line
+    footer = footer_dict(log)
+    assert footer["rows"] == 0 and footer["ticks_expected"] == 0, footer

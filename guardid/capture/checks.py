@@ -27,7 +27,8 @@ def _robot_name(description) -> str:
 
 
 def check_trajectory(trajectory, description, duration_s: float, source: str) -> None:
-    """ConfigError unless ``trajectory`` has the description's joints and stays within
+    """ConfigError unless ``trajectory`` has the description's joints (their names, in
+    order, when the trajectory names them) and stays within
     their position, velocity and acceleration limits over ``duration_s`` [s] (one period
     suffices for a periodic trajectory), on the 1 ms grid ``guardid excite`` checks."""
     n_traj, n_robot = trajectory.n_joints, len(description.joints)
@@ -36,6 +37,13 @@ def check_trajectory(trajectory, description, duration_s: float, source: str) ->
         raise ConfigError(
             f"{source}: has {n_traj} joint{'s' * (n_traj != 1)}, robot {description.name} "
             f"has {n_robot} ({names}); nothing moved"
+        )
+    names = getattr(trajectory, "joint_names", None)
+    robot_names = [j.name for j in description.joints]
+    if names is not None and list(names) != robot_names:
+        raise ConfigError(
+            f"{source}: joints: {', '.join(names)}, robot {description.name} has "
+            f"{', '.join(robot_names)} (in this order); nothing moved"
         )
     bad = first_violation(trajectory, description, horizon_s=duration_s)
     if bad is not None:

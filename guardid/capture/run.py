@@ -21,6 +21,7 @@ from guardid.capture.checks import counts_per_rad
 from guardid.capture.stop import CaptureStopped, StopRequest
 from guardid.errors import LinkError
 from guardid.link import Session
+from guardid.link.session import LazyRows
 from guardid.log import LogWriteError, LogWriter
 
 PROGRESS_EVERY_S = 0.25  #: wall-clock interval of progress reports [s]
@@ -42,10 +43,21 @@ class CaptureResult:
         return self.ticks_expected - self.rows
 
 
-def setpoint_counts(trajectory, description, n_ticks: int) -> np.ndarray:
-    """(n_ticks, n) integer setpoints [counts] of the trajectory at t = k * sample period."""
-    t = np.arange(n_ticks) * description.sample_period
+def setpoint_counts(trajectory, description, n_ticks: int, start: int = 0) -> np.ndarray:
+    """(n_ticks, n) integer setpoints [counts] of the trajectory at t = k * sample period,
+    k = start .. start + n_ticks - 1."""
+    t = np.arange(start, start + n_ticks) * description.sample_period
     return np.rint(trajectory.positions(t) * counts_per_rad(description)).astype(np.int64)
+
+
+def setpoint_rows(trajectory, description, n_ticks: int) -> LazyRows:
+    """The setpoints of :func:`setpoint_counts`, made a few thousand ticks at a time as the
+    capture reaches them (memory does not grow with ``--duration``)."""
+
+    def make(start: int, stop: int) -> np.ndarray:
+        return setpoint_counts(trajectory, description, stop - start, start)
+
+    return LazyRows(n_ticks, make)
 
 
 def capture(
@@ -80,7 +92,7 @@ def capture(
     """
     period = description.sample_period
     n_ticks = int(round(duration_s / period))
-    rows = setpoint_counts(trajectory, description, n_ticks)
+    rows = setpoint_rows(trajectory, description, n_ticks)
     per_rad = counts_per_rad(description)
     names = [j.name for j in description.joints]
     started = time.monotonic()
@@ -93,6 +105,7 @@ def capture(
     n_err = 0
     ended = "complete"
     first_tick = None
+    reached = 0  # ticks of the trajectory reached so far (an interrupted run's length)
     next_report = started
     try:
         session.set_watchdog(0.25)
@@ -104,6 +117,7 @@ def capture(
                 continue  # before the trajectory, or a tick past its end
             if first_tick is None:
                 first_tick = t.tick - index
+            reached = max(reached, index + 1)
             counts = np.asarray(t.counts)
             q = counts / per_rad
             sp = np.asarray(t.setpoint_counts) / per_rad
@@ -126,7 +140,7 @@ def capture(
                 stop.check()  # after this tick's row is written, before the next tick
         _idle(session, stop)
     except (CaptureStopped, KeyboardInterrupt) as exc:
-        ended = "interrupted"
+        ended, n_ticks = "interrupted", reached  # the ticks this run came to
         _idle(session, stop)
         footer = _footer(session, writer.rows, n_ticks, ended, started)
         footer["signal"] = str(exc) if isinstance(exc, CaptureStopped) else "SIGINT"

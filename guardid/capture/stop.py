@@ -1,10 +1,11 @@
-"""Ctrl-C (SIGINT) and SIGTERM during a capture: a flag, checked at safe points.
+"""Ctrl-C (SIGINT), SIGTERM and SIGHUP (a closed terminal, a dropped ssh session) during a
+capture: a flag, checked at safe points.
 
 Python's default SIGINT handler raises KeyboardInterrupt at whatever bytecode the main
 thread is running. In a capture that may be inside ``with lock:`` of a real-time
 ``sim://`` port (right after the lock was taken, leaking it, so that closing the port
 waits forever for its clock thread), or half-way through a simulated tick. So while a
-capture runs, both signals only set :class:`StopRequest`; the capture raises
+capture runs, these signals only set :class:`StopRequest`; the capture raises
 :class:`CaptureStopped` at points where stopping is safe: at every tick of the capture
 loop, before every write to the port and before every read of it that would wait
 (:class:`StopAwarePort`); such reads return within the port's read timeout (0.1 s) even
@@ -18,7 +19,7 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 class CaptureStopped(BaseException):  # noqa: N818  (a request, like KeyboardInterrupt)
@@ -44,12 +45,12 @@ class StopRequest:
 
     @property
     def exit_code(self) -> int:
-        """Shell convention 128 + signal number (130 for SIGINT, 143 for SIGTERM)."""
+        """Shell convention 128 + signal number (130 SIGINT, 143 SIGTERM, 129 SIGHUP)."""
         return 128 + (self.signum or 0)
 
     @property
     def name(self) -> str:
-        """SIGINT, SIGTERM, or '' when no stop was requested."""
+        """SIGINT, SIGTERM, SIGHUP, or '' when no stop was requested."""
         return signal.Signals(self.signum).name if self.signum else ""
 
     def request(self, signum: int = signal.SIGINT, _frame=None) -> None:
@@ -68,12 +69,17 @@ class StopRequest:
 
     @contextmanager
     def installed(self) -> Iterator[StopRequest]:
-        """Route SIGINT and SIGTERM to :meth:`request` inside the block (main thread only;
-        elsewhere signals cannot be handled and the block runs unchanged)."""
+        """Route SIGINT, SIGTERM and SIGHUP to :meth:`request` inside the block (main thread
+        only; elsewhere signals cannot be handled and the block runs unchanged). A SIGHUP
+        left ignored (``nohup``) stays ignored."""
         if threading.current_thread() is not threading.main_thread():
             yield self
             return
-        old = {s: signal.signal(s, self.request) for s in STOP_SIGNALS}
+        old = {
+            s: signal.signal(s, self.request)
+            for s in STOP_SIGNALS
+            if not (s == signal.SIGHUP and signal.getsignal(s) is signal.SIG_IGN)
+        }
         try:
             yield self
         finally:

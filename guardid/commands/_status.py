@@ -15,6 +15,30 @@ import click
 
 MIN_INTERVAL_S = 0.1  #: the line is rewritten at most this often [s]
 
+_open_line: list = []  # the stream whose last line is a status line not ended yet
+
+
+def line_open(stream) -> None:
+    """Note that ``stream``'s last line is a status line rewritten in place (no newline)."""
+    _open_line[:] = [stream]
+
+
+def forget_line() -> None:
+    """Forget an open status line (a new command starts; its stream may be another)."""
+    _open_line.clear()
+
+
+def end_line() -> None:
+    """End an open status line with a newline, so that what follows (an error, a warning,
+    the closing summary) starts on a line of its own."""
+    if _open_line:
+        stream = _open_line.pop()
+        try:
+            stream.write("\n")
+            stream.flush()
+        except (OSError, ValueError):  # closed or broken: nothing to end
+            pass
+
 
 class Status:
     """One live status line on stderr; ``stages`` records (name, seconds) as they finish."""
@@ -40,6 +64,7 @@ class Status:
         pad = max(0, self._width - len(text))
         click.echo("\r" + text + " " * pad, file=self.stream, nl=False)
         self._width = len(text)
+        line_open(self.stream)
 
     def stage(self, name: str) -> None:
         """Close the running stage (its time is kept) and start ``name``."""
@@ -60,6 +85,7 @@ class Status:
         if self.live and self._width:
             click.echo("\r" + " " * self._width + "\r", file=self.stream, nl=False)
             self._width = 0
+            _open_line.clear()
 
     def done(self, what: str) -> None:
         """Clear the line and print ``what`` with the time taken and each stage's share."""

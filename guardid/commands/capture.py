@@ -9,6 +9,9 @@ import sys
 
 import click
 
+from guardid.commands._status import end_line, forget_line, line_open
+from guardid.commands._types import POSITIVE
+from guardid.commands.outputs import force_option, output_option
 from guardid.errors import ConfigError
 
 TRACKING_PERIOD_S = 5.0
@@ -24,24 +27,36 @@ def _load_trajectory(path: str):
 
 
 @click.command()
-@click.option("--port", default=None, help="Serial device or URL [default: sim://<robot>].")
-@click.option("--baud", default=115200, show_default=True, help="Baud rate.")
+@click.option(
+    "--port",
+    default=None,
+    help="Serial device or URL [default: sim://<robot>]; an empty value is refused (an unset "
+    "$PORT must not silently mean the simulator).",
+)
+@click.option(
+    "--baud", type=click.IntRange(min=50), default=115200, show_default=True, help="Baud rate."
+)
 @click.option("--robot", default="guard", show_default=True, help="Shipped robot or YAML path.")
 @click.option(
     "--trajectory", "trajectory_path", required=True, help="Trajectory YAML (guardid excite)."
 )
-@click.option("--duration", type=float, default=None, help="Capture length [s].")
-@click.option("--periods", type=int, default=None, help="Capture length in trajectory periods.")
+@click.option("--duration", type=POSITIVE, default=None, help="Capture length [s].")
+@click.option(
+    "--periods",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Capture length in trajectory periods.",
+)
 @click.option(
     "--timeout",
-    type=float,
+    type=POSITIVE,
     default=1.0,
     show_default=True,
     help="Longest wait for an answer or a telemetry frame [s]; unanswered commands are "
     "sent again, up to 5 times.",
 )
-@click.option("-o", "--output", required=True, help="Log file to write (CSV); must not exist.")
-@click.option("--force", is_flag=True, help="Replace an existing OUTPUT (never one of the inputs).")
+@output_option("Log file (CSV)")
+@force_option("an existing OUTPUT")
 @click.option("--quiet", is_flag=True, help="No progress display.")
 @click.option(
     "--online",
@@ -91,12 +106,16 @@ def capture(
                 force, quiet, online, online_effort, stop, until_std,
             )  # fmt: skip
         except CaptureStopped:
-            click.echo("", err=True)
-            click.echo(f"interrupted ({stop.name}) before the capture started: nothing written")
+            end_line()
+            click.echo(
+                f"guardid: interrupted ({stop.name}) before the capture started: nothing written",
+                err=True,
+            )
             sys.exit(stop.exit_code)
-    if not quiet:
-        click.echo("", err=True)
+    end_line()
     errs = ", ".join(f"{math.degrees(e):.3f} deg" for e in result.rms_tracking_error_rad)
+    if not result.rows:
+        errs = "- (no rows)"
     st = result.link
     click.echo(
         f"{result.ended}: {result.rows} rows in {output} ({result.lost_rows} lost), "
@@ -127,6 +146,11 @@ def _capture(
     from guardid.link import Session, open_port
     from guardid.robot import load_robot
 
+    if port is not None and not port.strip():
+        raise ConfigError(
+            "--port: empty (an unset variable?); give a serial device such as /dev/ttyUSB0, "
+            "or leave --port out for the simulated robot"
+        )
     inputs = [("--trajectory", trajectory_path), ("--robot", robot_file(robot))]
     check_output(output, inputs, force=force)
     description = load_robot(robot)
@@ -137,8 +161,7 @@ def _capture(
         duration = UNTIL_STD_CAP_S
     if duration is None:
         duration = (periods or 1) * trajectory.period
-    if not duration > 0:
-        raise ConfigError(f"--duration: must be > 0 s, got {duration:g}")
+    _check_room(output, duration, description)
     check_trajectory(trajectory, description, duration, trajectory_path)
     tracker = _tracker(online, description, trajectory, online_effort)
     live = None
@@ -157,7 +180,7 @@ def _capture(
                 "--base-freq 0.2 --harmonics 3, README 'Excitation for tracking')",
                 err=True,
             )
-    port_url = port or f"sim://{robot}"
+    port_url = f"sim://{robot}" if port is None else port
     stop.check()
     serial_port = open_port(port_url, baud)
     session = Session(StopAwarePort(serial_port, stop), timeout_s=timeout)
@@ -199,6 +222,44 @@ def _capture(
     return result, tracker, live
 
 
+ROW_BYTES_BASE, ROW_BYTES_PER_JOINT = 30, 60
+"""A log row's size at most [bytes]: tick, time and status, plus per joint counts, angle,
+voltage, current and setpoint as :class:`guardid.log.LogWriter` formats them."""
+
+
+def _check_room(output, duration_s: float, description) -> None:
+    """ConfigError when the log of a ``duration_s`` [s] capture would not fit in the free
+    space of ``output``'s file system (``--duration 1e9``: terabytes). Not for a device or
+    a pipe given with --force (the log goes elsewhere)."""
+    import shutil
+    import stat
+    from pathlib import Path
+
+    if os.path.exists(output) and not stat.S_ISREG(os.stat(output).st_mode):
+        return
+    folder = Path(output).parent
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError:
+        return  # checked by check_output already; nothing more to say
+    rows = duration_s / description.sample_period
+    need = rows * (ROW_BYTES_BASE + ROW_BYTES_PER_JOINT * len(description.joints))
+    if need > free:
+        raise ConfigError(
+            f"--duration {duration_s:g} s: the log {output} would need about "
+            f"{_size(need)}, {_size(free)} free in {folder}"
+        )
+
+
+def _size(n_bytes: float) -> str:
+    unit = "B"
+    for unit in ("B", "kB", "MB", "GB", "TB"):
+        if n_bytes < 1000 or unit == "TB":
+            break
+        n_bytes /= 1000
+    return f"{n_bytes:.3g} {unit}"
+
+
 def _progress(c: dict) -> None:
     errs = " ".join(f"{math.degrees(e):.2f}" for e in c["tracking_rms_rad"])
     click.echo(
@@ -207,6 +268,7 @@ def _progress(c: dict) -> None:
         err=True,
         nl=False,
     )
+    line_open(sys.stderr)
 
 
 def _tracker(online, description, trajectory, effort):
@@ -223,7 +285,14 @@ def _progress_with(tracker, live=None):
     if live is not None:
         from guardid.online.information import LiveDisplay
 
-        return LiveDisplay(live, sys.stderr, tracker=tracker).show
+        display = LiveDisplay(live, sys.stderr, tracker=tracker)
+
+        def show_live(c: dict) -> None:
+            display.show(c)
+            if not display.tty:  # one line rewritten in place: still open
+                line_open(sys.stderr)
+
+        return show_live
     if tracker is None:
         return _progress
 
@@ -234,6 +303,7 @@ def _progress_with(tracker, live=None):
             err=True,
             nl=False,
         )
+        line_open(sys.stderr)
 
     return show
 
@@ -249,17 +319,20 @@ def _on_row(tracker, live, quiet: bool):
         if tracker is not None:
             for report in tracker.update(t_s, q, amps, volts):
                 click.echo(("" if quiet else "\r") + str(report), err=True)
+                forget_line()  # the report overwrote the progress line and ended it
 
     return feed
 
 
 def _online_summary(tracker, output: str, force: bool) -> None:
+    from guardid.commands.outputs import EXISTS, replacing
     from guardid.online import online_path
 
     path = online_path(output)
     if not force and os.path.lexists(path):  # appeared during the capture
-        raise ConfigError(f"{path}: already exists; online estimates not written (--force)")
-    tracker.write_csv(path)
+        raise ConfigError(EXISTS.format(option="--online output", path=path))
+    with replacing(path, "--online output") as tmp:
+        tracker.write_csv(tmp)
     final = "; ".join(
         f"{m.upper()} "
         + " ".join(f"{n} {v:.4g}" for n, v in zip(tracker.names, tracker.estimate(m), strict=True))

@@ -15,6 +15,7 @@ import click
 import numpy as np
 
 from guardid.commands._status import Status
+from guardid.commands.outputs import force_option, output_option
 from guardid.conditioning.bandwidth import MAX_NYQUIST_FRACTION
 from guardid.excitation import (
     ExcitationError,
@@ -85,25 +86,23 @@ SAMPLES = 300  # cond grid: samples per period
     is_flag=True,
     help="print every optimiser iteration to stderr (on a terminal a live line shows it anyway)",
 )
-@click.option(
-    "-o",
-    "--output",
-    required=True,
-    type=click.Path(dir_okay=False),
-    help="trajectory YAML to write",
-)
+@output_option("Trajectory YAML")
+@force_option("an existing OUTPUT")
 def excite(
-    robot, kind, harmonics, base_freq, seed, starts, margin, start_deg, no_optimise, verbose, output
-):
+    robot, kind, harmonics, base_freq, seed, starts, margin, start_deg, no_optimise, verbose,
+    output, force,
+):  # fmt: skip
     """Write an excitation trajectory YAML; print its condition number and limit use.
 
     Fourier series per joint optimised for cond of the base regressor under the joint limits
     (seed 001 eqs 34-38), or a Schroeder multisine / sum of sines scaled onto the limits.
     """
+    from guardid.commands.outputs import check_output, replacing, robot_file
     from guardid.dynamics import build_model
     from guardid.robot import ChainDescription, load_robot
 
     t0 = time.perf_counter()
+    check_output(output, [("--robot", robot_file(robot))], force=force)
     desc = load_robot(robot)
     if not isinstance(desc, ChainDescription):
         raise ExcitationError(f"{robot}: excite needs a serial-chain robot description")
@@ -159,10 +158,8 @@ def excite(
         "cond": cond,
         "cond_samples": SAMPLES,
     }
-    try:
-        traj.save(output, info=info)
-    except OSError as exc:
-        raise ExcitationError(f"{output}: cannot write: {exc.strerror or exc}") from None
+    with replacing(output) as tmp:
+        traj.save(tmp, info=info)
 
     echo = click.echo
     echo(

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import click
 import yaml
 
+from guardid.commands._types import POSITIVE
+from guardid.commands.outputs import force_option
 from guardid.errors import ConfigError, GuardidError, UntrustedResult
 
 
@@ -82,19 +83,22 @@ def _load_all(logs, robot_opt, foreign):
     return runs, description
 
 
-def _check_outputs(logs, robot, foreign, **outputs) -> None:
+def _check_outputs(logs, robot, foreign, force=False, **outputs) -> None:
     """ConfigError when -o, --plot or --report names one of the inputs (a log, the robot or
-    mapping YAML): results never replace recorded data."""
-    from guardid.commands.outputs import check_output, robot_file
+    mapping YAML), an existing file (without --force) or a place that cannot be written:
+    checked before any work starts (guardid.commands.outputs)."""
+    from guardid.commands.outputs import check_distinct, check_output, robot_file
 
     inputs = [("LOG", x) for x in logs] + [("--robot", robot_file(robot))]
     inputs += [("--columns", c) for c in foreign.get("columns") or () if Path(c).is_file()]
-    for option, path in (
+    paths = [
         ("-o", outputs["output"]),
         ("--plot", outputs["plot_path"]),
         ("--report", outputs["report_path"]),
-    ):
-        check_output(path, inputs, option=option)
+    ]
+    for option, path in paths:
+        check_output(path, inputs, option=option, force=force)
+    check_distinct(paths)
 
 
 _CONSISTENT_HELP = (
@@ -105,19 +109,7 @@ _CONSISTENT_HELP = (
 )
 
 
-class _PositiveFinite(click.ParamType):
-    """A finite number > 0 (click's FloatRange lets NaN and inf through)."""
-
-    name = "float"
-
-    def convert(self, value, param, ctx):
-        x = value if isinstance(value, float) else click.FLOAT.convert(value, param, ctx)
-        if not (math.isfinite(x) and x > 0):
-            self.fail(f"{value!r} is not a finite number > 0", param, ctx)
-        return x
-
-
-_POSITIVE = _PositiveFinite()
+_POSITIVE = POSITIVE
 
 _PARALLEL_HELP = (
     "Gautier's parallel filter: low-pass the regressor and the torque at HZ [Hz] after the "
@@ -156,14 +148,25 @@ class _MethodOption(click.Option):
 )
 @click.option("--eta", type=_POSITIVE, default=1e-3, show_default=True, help="Gradient gain.")
 @click.option("--current-units", is_flag=True, help="Identify in current units (gain unknown).")
-@click.option("-o", "--output", default=None, help="Write the parameters to this YAML file.")
-@click.option("--plot", "plot_path", default=None, help="Write a PNG report (matplotlib).")
+@click.option(
+    "-o",
+    "--output",
+    default=None,
+    help="Write the parameters to this YAML file (an existing file only with --force).",
+)
+@click.option(
+    "--plot",
+    "plot_path",
+    default=None,
+    help="Write a PNG report (matplotlib; an existing file only with --force).",
+)
 @click.option(
     "--report",
     "report_path",
     default=None,
     help="Write a self-contained HTML report (verdict, parameters, fit, residual spectrum, "
-    "online estimators, conditioning, motors; needs matplotlib).",
+    "online estimators, conditioning, motors; needs matplotlib; an existing file only with "
+    "--force).",
 )
 @click.option("--parallel-filter", "parallel_hz", type=float, default=None, help=_PARALLEL_HELP)
 @click.option("--consistent", is_flag=True, help=_CONSISTENT_HELP)
@@ -173,12 +176,11 @@ class _MethodOption(click.Option):
     help="Leave-one-run-out cross-validation over the LOGs (at least 2): fit on all but one, "
     "score the held-out run (stacked relative rms error), print the table.",
 )
-@click.option(
-    "--force",
-    is_flag=True,
-    help="Report and write the parameters even when the identification cannot be trusted "
-    "(zero, rank-deficient or nearly unexcited regressor, non-finite estimates; exit 4 "
-    "without it).",
+@force_option(
+    "existing output files: -o, --plot, --report",
+    more=", and report and write the parameters even when the identification cannot be "
+    "trusted (zero, rank-deficient or nearly unexcited regressor, non-finite estimates; exit "
+    "4 without it)",
 )
 @_foreign_options
 def identify(
@@ -197,7 +199,12 @@ def identify(
     from guardid.identify import identify as run_identify
     from guardid.identify.report import plot, table, to_yaml_dict
 
-    _check_outputs(log, robot, foreign, output=output, plot_path=plot_path, report_path=report_path)
+    _check_outputs(
+        log, robot, foreign, force, output=output, plot_path=plot_path, report_path=report_path
+    )
+    methods = tuple(m.strip() for m in method.split(",") if m.strip())
+    if not methods:
+        raise ConfigError(f"--method {method!r}: no method named (e.g. --method ls,wls)")
     status = Status()
     status.stage("reading")
     logs, (runs, description) = log, _load_all(log, robot, foreign)
@@ -275,16 +282,17 @@ def identify(
             err=True,
         )
     if output:
-        with open(output, "w", encoding="utf-8") as f:
-            source = log if len(runs) == 1 else ", ".join(str(x) for x in logs)
-            data = to_yaml_dict(result, description, source)
-            if fit:
-                from guardid.physical.report import yaml_section
+        from guardid.commands.outputs import write_text
 
-                data["consistent"] = yaml_section(fit)
-            if result.untrusted:  # written with --force: the file says why not to trust it
-                data["untrusted"] = list(result.untrusted)
-            yaml.safe_dump(data, f, sort_keys=False)
+        source = log if len(runs) == 1 else ", ".join(str(x) for x in logs)
+        data = to_yaml_dict(result, description, source)
+        if fit:
+            from guardid.physical.report import yaml_section
+
+            data["consistent"] = yaml_section(fit)
+        if result.untrusted:  # written with --force: the file says why not to trust it
+            data["untrusted"] = list(result.untrusted)
+        write_text(output, yaml.safe_dump(data, sort_keys=False))
         click.echo(f"parameters written to {output}")
     if plot_path or report_path:
         from guardid.identify.rows import stacked_rows
@@ -295,14 +303,17 @@ def identify(
             in_current_units=current_units, effort_is_torque=run.torque,
         )  # fmt: skip
     if plot_path:
-        plot(result, plot_path, A, y, tracker=tracker)
+        from guardid.commands.outputs import replacing
+
+        with replacing(plot_path, "--plot") as tmp:
+            plot(result, tmp, A, y, tracker=tracker)
         click.echo(f"plot written to {plot_path}")
     if report_path:
-        from guardid.report import write_report
+        from guardid.commands.outputs import write_text
         from guardid.report.cli import identify_page
 
         page = identify_page(result, description, whole, logs, cond, A, y, tracker)
-        write_report(report_path, page, inputs_paths=logs)
+        write_text(report_path, page, "--report")
         click.echo(f"report written to {report_path}")
     status.done("identify: done")
     if fit and fit.violations:
@@ -361,10 +372,12 @@ def _cross_validate(logs, runs, description, options):
     "report_path",
     default=None,
     help="Write a self-contained HTML report: the scores per run and set, measured and "
-    "predicted effort of the best set, residual spectra (needs matplotlib).",
+    "predicted effort of the best set, residual spectra (needs matplotlib; an existing file "
+    "only with --force).",
 )
+@force_option("an existing --report file")
 @_foreign_options
-def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, **foreign):
+def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, force, **foreign):
     """Score parameter sets on runs LOG [LOG ...]: torque prediction error, all joints stacked.
 
     Every set (each method of each params file, each reference values file) is scored under
@@ -373,8 +386,11 @@ def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, **forei
     relative rms error rms(tau - tau_model) / rms(tau) over all joints, and per joint the rms
     error in its unit and the relative error (not for a passive joint).
     """
+    from guardid.commands.outputs import check_output
     from guardid.identify import validation as v
 
+    inputs = [("LOG", x) for x in log] + [("--params", x) for x in params_paths]
+    check_output(report_path, inputs, option="--report", force=force)
     first = v.first_params(params_paths)
     spec = robot or (v.stored_robot(*first) if first else None)
     runs, description = _load_all(log, spec, foreign)
@@ -391,17 +407,12 @@ def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, **forei
     )
     sets = [s for path in params_paths for s in v.load_sets(path, description)]
     current_units = bool(first) and first[1].get("torque_unit") not in ("N m", None)
-    if report_path:
-        from guardid.commands.outputs import check_output
-
-        inputs = [("LOG", x) for x in log] + [("--params", x) for x in params_paths]
-        check_output(report_path, inputs, option="--report")
     keep = {} if report_path else None
     click.echo(v.validate_runs(runs, log, description, sets, options, current_units, keep=keep))
     if report_path:
-        from guardid.report import write_report
+        from guardid.commands.outputs import write_text
         from guardid.report.cli import validate_page
 
         page = validate_page(description, log, sets, keep, current_units)
-        write_report(report_path, page, inputs_paths=[*log, *params_paths])
+        write_text(report_path, page, "--report")
         click.echo(f"report written to {report_path}")

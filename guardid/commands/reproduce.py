@@ -6,14 +6,21 @@ import time
 
 import click
 
+from guardid.commands.outputs import force_option
+
 NAMES = ("seed000-step", "seed000-slow", "seed000-fast", "seed001-table1")
 
 
 @click.command()
 @click.argument("experiment", type=click.Choice(NAMES))
 @click.option(
-    "--plot", "plot_dir", default=None, help="Write the paper's figures (PNG) to this directory."
+    "--plot",
+    "plot_dir",
+    default=None,
+    help="Write the paper's figures (PNG) to this directory (created if missing; one that "
+    "holds files already only with --force).",
 )
+@force_option("the figures in a --plot directory that holds files")
 @click.option("--seed", default=0, show_default=True, help="Seed of the measurement noise.")
 @click.option(
     "--exact-acceleration",
@@ -22,7 +29,7 @@ NAMES = ("seed000-step", "seed000-slow", "seed000-fast", "seed001-table1")
     " white noise (the easy variant) instead of noisy quantised q and noisy tau through"
     " guardid's conditioning (the default).",
 )
-def reproduce(experiment, plot_dir, seed, exact_acceleration):
+def reproduce(experiment, plot_dir, seed, exact_acceleration, force):
     """Simulate EXPERIMENT, run the estimators, print our numbers beside the paper's.
 
     Each printout names the model repairs applied and every assumption made where the
@@ -34,9 +41,11 @@ def reproduce(experiment, plot_dir, seed, exact_acceleration):
     if exact_acceleration and experiment != "seed001-table1":
         raise click.UsageError("--exact-acceleration applies to seed001-table1 only")
     if plot_dir is not None:
+        from guardid.commands.outputs import check_new_directory_files
         from guardid.reproduce.plots import require_matplotlib
 
         require_matplotlib()
+        check_new_directory_files(plot_dir, "--plot", force=force)
     t0 = time.perf_counter()
     kwargs = {"exact_acceleration": True} if exact_acceleration else {}
     report = module.run(seed, **kwargs)

@@ -7,6 +7,7 @@ import time
 
 import click
 
+from guardid.commands.outputs import force_option, output_option
 from guardid.errors import GuardidError
 
 _WEIGHTS = (0.5, 0.3, 0.2)  # share of the amplitude per sine
@@ -59,6 +60,8 @@ class Pid:
 
 def run(robot: str, duration: float, seed: int, payload, noise: bool = True):
     """Simulate; yield (sample, setpoint) per tick. Raises GuardidError subclasses."""
+    import numpy as np
+
     from guardid.plant import Plant, PlantError
     from guardid.robot import load_robot
 
@@ -71,7 +74,14 @@ def run(robot: str, duration: float, seed: int, payload, noise: bool = True):
     pids = [Pid(j.pid, plant.dt, j.drive.supply_voltage) for j in joints]
     volts = [0.0] * len(joints)
     for _ in range(int(round(duration / plant.dt))):
-        sample = plant.step(volts)
+        with np.errstate(all="ignore"):  # a diverging plant is reported below, in one line
+            sample = plant.step(volts)
+        if not all(math.isfinite(x) for x in (*sample.q, *sample.qd)):
+            raise PlantError(
+                f"{description.source or description.name}: the simulation diverged at "
+                f"t = {sample.time:.3f} s (joint state not finite); check the masses, "
+                "inertias and drives"
+            )
         setpoint = ref(sample.time)
         volts = [pid(r - q) for pid, r, q in zip(pids, setpoint, sample.q_sensed, strict=True)]
         yield description, sample, setpoint
@@ -94,18 +104,21 @@ def _columns(n: int) -> list[str]:
 @click.option("--payload-com", default="0.12,0.02,0", show_default=True,
               help="Payload centre of mass in the last link frame [m], x,y,z.")  # fmt: skip
 @click.option("--no-noise", is_flag=True, help="Quantisation only, no sensor noise.")
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False))
-def simulate(robot, duration, seed, payload_time, payload_mass, payload_com, no_noise, output):
+@output_option("CSV file")
+@force_option("an existing OUTPUT")
+def simulate(
+    robot, duration, seed, payload_time, payload_mass, payload_com, no_noise, output, force
+):
     """Closed-loop PID run of the simulated robot; write true and sensed signals to CSV.
 
     Row k is tick k (t = k T): true q [rad], qd [rad/s] at t, true mean current [A] over
     the period ending at t, encoder counts, q_sensed [rad], sensed mean voltage [V] and
     current [A], and the setpoint [rad] the PID used at t.
     """
-    from guardid.commands.outputs import check_output, robot_file
+    from guardid.commands.outputs import check_output, robot_file, write_text
     from guardid.plant import PayloadChange
 
-    check_output(output, [("--robot", robot_file(robot))])
+    check_output(output, [("--robot", robot_file(robot))], force=force)
     if not (duration > 0 and math.isfinite(duration)):
         raise SimulateError(f"--duration must be > 0 s, got {duration}")
     payload = ()
@@ -138,11 +151,7 @@ def simulate(robot, duration, seed, payload_time, payload_mass, payload_com, no_
     if payload:
         head.append(f"# payload: time_s={payload_time} mass_kg={payload_mass} com_m={payload_com}")
     text = "\n".join([*head, ",".join(_columns(len(description.joints))), *rows]) + "\n"
-    try:
-        with open(output, "w", encoding="utf-8") as fh:
-            fh.write(text)
-    except OSError as exc:
-        raise SimulateError(f"{output}: cannot write: {exc.strerror}") from None
+    write_text(output, text)
     rms = ", ".join(f"{math.sqrt(x / n):.4f}" for x in sq_err)
     click.echo(f"simulate: {description.name} {n} ticks ({duration:g} s) seed {seed} -> {output};"
                f" rms tracking error [{rms}] rad; {duration / wall:.0f}x real time")  # fmt: skip

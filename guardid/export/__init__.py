@@ -6,6 +6,6 @@ Frames: :mod:`guardid.export.frames`; formats: :mod:`guardid.export.urdf`,
 
 from guardid.export.mjcf import mjcf_text, write_mjcf
 from guardid.export.side import side_path
-from guardid.export.urdf import urdf_text, write_urdf
+from guardid.export.urdf import urdf_text, urdf_texts, write_urdf
 
-__all__ = ["mjcf_text", "side_path", "urdf_text", "write_mjcf", "write_urdf"]
+__all__ = ["mjcf_text", "side_path", "urdf_text", "urdf_texts", "write_mjcf", "write_urdf"]

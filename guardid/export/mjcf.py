@@ -89,7 +89,7 @@ def mjcf_text(description) -> str:
         if joint.friction is not None and joint.friction.offset != 0.0:
             body.append(
                 ET.Comment(
-                    f" friction offset {joint.friction.offset!r} N m of {joint.name}: "
+                    f" friction offset {_num(joint.friction.offset)} N m of {joint.name}: "
                     "no MJCF field (see the side YAML) "
                 )
             )

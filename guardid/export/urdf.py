@@ -100,18 +100,23 @@ def _effort(joint) -> float:
     return d.gear_ratio * d.efficiency * d.kt * d.supply_voltage / d.resistance
 
 
-def write_urdf(description, path) -> tuple[Path, Path]:
-    """Write ``path`` (URDF) and its side YAML beside it; returns both paths."""
-    path = Path(path)
+def urdf_texts(description, path) -> tuple[str, str]:
+    """(URDF text, side YAML text) of ``description`` for a URDF written to ``path``."""
     g_world = gravity_alignment(description.gravity) @ np.asarray(description.gravity, float)
-    side = side_path(path)
-    text = urdf_text(description)
     side_text = (
         "# guardid side file of "
-        + path.name
+        + Path(path).name
         + ": what URDF has no field for (docs/URDF.md)\n"
         + yaml.safe_dump(side_dict(description, g_world), sort_keys=False)
     )
+    return urdf_text(description), side_text
+
+
+def write_urdf(description, path) -> tuple[Path, Path]:
+    """Write ``path`` (URDF) and its side YAML beside it; returns both paths."""
+    path = Path(path)
+    side = side_path(path)
+    text, side_text = urdf_texts(description, path)
     path.write_text(text, encoding="utf-8")
     side.write_text(side_text, encoding="utf-8")
     return path, side

@@ -178,6 +178,16 @@ def read_params(path) -> dict:
         isinstance(m, dict) and isinstance(m.get("values"), list) for m in methods.values()
     ):
         raise ConfigError(f"{path}: methods: expected method: {{values: [...]}} entries")
+    for name, entry in methods.items():
+        for key in ("values", "std"):
+            seq = entry.get(key)
+            if key == "std" and seq is None:
+                continue
+            if not isinstance(seq, list):
+                raise ConfigError(f"{path}: methods.{name}.{key}: expected a list of numbers")
+            for k, x in enumerate(seq):
+                if isinstance(x, bool) or not isinstance(x, (int, float)):
+                    raise ConfigError(f"{path}: methods.{name}.{key}[{k}]: {x!r} is not a number")
     return data
 
 

@@ -220,7 +220,10 @@ def load_sets(path, description) -> list[ParameterSet]:
     data = _yaml(path)
     if "guardid-reference" in data:
         return [reference_set(path, description)]
-    return params_sets(path, read_params(path), description)
+    data = read_params(path)
+    if not data["methods"]:
+        raise ConfigError(f"{path}: methods: empty (no estimate to score; rerun guardid identify)")
+    return params_sets(path, data, description)
 
 
 def first_params(paths):

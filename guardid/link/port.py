@@ -8,7 +8,7 @@ from pathlib import Path
 
 import serial
 
-from guardid.errors import GuardidError, LinkError
+from guardid.errors import ConfigError, GuardidError, LinkError
 
 DEFAULT_PORT = "sim://guard"
 _IN_USE = (errno.EAGAIN, errno.EWOULDBLOCK, errno.EBUSY)
@@ -21,7 +21,8 @@ def open_port(url: str = DEFAULT_PORT, baud: int = 115200, timeout_s: float = 0.
     that every guardid process and other pyserial programs asking for it respect); URL
     handlers (``sim://``, ``socket://``, ...) have no lock and are opened as they are.
     Raises :class:`LinkError` naming the port when it cannot be opened, saying so when
-    another program holds it; a bad ``sim://`` option is bad input (exit 2), naming it.
+    another program holds it; :class:`ConfigError` (bad input, exit 2) for a malformed URL
+    option or setting (``sim://guard?seed=abc``).
     """
     if url.startswith("sim://"):
         import guardid.fakeport  # noqa: F401  (registers the sim:// handler)
@@ -30,7 +31,10 @@ def open_port(url: str = DEFAULT_PORT, baud: int = 115200, timeout_s: float = 0.
         return serial.serial_for_url(
             url, baudrate=baud, timeout=timeout_s, write_timeout=2.0, **extra
         )
-    except (serial.SerialException, ValueError, OSError) as exc:
+    except ValueError as exc:  # a bad URL option or setting: the user's input, not the link
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ConfigError(f"port {url}: {reason}") from None
+    except (serial.SerialException, OSError) as exc:
         if _in_use(exc):
             raise LinkError(
                 f"port {url}: already in use ({_holders(url) or 'by another program'}); "

@@ -73,6 +73,28 @@ class RetryPolicy:
         ]
 
 
+class LazyRows:
+    """Rows of a long trajectory made ``chunk`` at a time as a run reaches them (a capture
+    of days would need gigabytes at once): ``make(start, stop)`` returns the integer rows
+    [counts] of ticks ``start`` to ``stop`` - 1, as an (stop - start, n) array."""
+
+    def __init__(self, n_rows: int, make, chunk: int = 4096) -> None:
+        self.n_rows, self.make, self.chunk = n_rows, make, chunk
+        self._start, self._rows = 0, []
+
+    def __len__(self) -> int:
+        return self.n_rows
+
+    def __getitem__(self, k: int) -> list[int]:
+        if not 0 <= k < self.n_rows:
+            raise IndexError(k)
+        if not self._start <= k < self._start + len(self._rows):
+            self._start = k - k % self.chunk
+            stop = min(self._start + self.chunk, self.n_rows)
+            self._rows = np.asarray(self.make(self._start, stop), dtype=np.int64).tolist()
+        return self._rows[k - self._start]
+
+
 class Session:
     """The host end of the protocol over an open pyserial port.
 
@@ -270,7 +292,9 @@ class Session:
                 )
         return self.telemetry.popleft()
 
-    def track(self, setpoints_counts: np.ndarray, depth: int = 8, lead_ticks: int = 3) -> Iterator:
+    def track(
+        self, setpoints_counts: np.ndarray | LazyRows, depth: int = 8, lead_ticks: int = 3
+    ) -> Iterator:
         """Run a closed-loop trajectory: one row of joint setpoints [counts] per tick.
 
         Switches to position mode, streams setpoints ahead of their tick (at most
@@ -281,9 +305,12 @@ class Session:
         PING's. START_STREAM goes right behind the first row's setpoint, ahead of the other
         ``depth - 1`` (~160 bytes, 14 ms at 115200 baud): behind them it reached the AVR
         binary in the loop (firmware=avr) after the first row's tick, which then had no
-        telemetry.
+        telemetry. ``setpoints_counts``: an (N, n) array, or :class:`LazyRows` for a long
+        run (made as the run reaches them, never all at once).
         """
-        rows = np.asarray(setpoints_counts, dtype=np.int64).tolist()  # Python ints per row
+        rows = setpoints_counts
+        if not isinstance(rows, LazyRows):
+            rows = np.asarray(rows, dtype=np.int64).tolist()  # Python ints per row
         self.telemetry.clear()
         self.set_mode("position")
         first = self.ping() + lead_ticks

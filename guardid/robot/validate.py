@@ -6,6 +6,10 @@ import math
 
 from guardid.errors import ConfigError
 
+MAX_MAGNITUDE = 1e15
+"""Largest magnitude of any number in a robot description (a Young's modulus is ~2e11 Pa):
+beyond it products in the dynamics overflow (a link mass of 1e308 kg gave numpy warnings)."""
+
 
 class Checker:
     """Validation context for one file: every error reads ``<file>: <key path>: <problem>``."""
@@ -40,6 +44,8 @@ class Checker:
         x = float(value)
         if not math.isfinite(x):
             self.fail(path, f"expected a finite number, got {value!r}")
+        if abs(x) > MAX_MAGNITUDE:
+            self.fail(path, f"{x:g} is beyond any robot (magnitude at most {MAX_MAGNITUDE:g})")
         if positive and x <= 0:
             self.fail(path, f"must be > 0, got {x:g}")
         if nonneg and x < 0:
