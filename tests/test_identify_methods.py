@@ -142,3 +142,4 @@ def test_options_are_immutable_values():
     with pytest.raises(dataclasses.FrozenInstanceError):
         o.rls_lambda = 0.5
     assert IdentifyOptions() == IdentifyOptions()
+    assert IdentifyOptions(methods="ls, wls").methods == ("ls", "wls")  # not ('l', 's', ...)

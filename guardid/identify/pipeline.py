@@ -71,11 +71,12 @@ class HopfieldSettings:
 class IdentifyOptions:
     """How :func:`identify` runs, everything but the data.
 
-    ``methods``: names of registered estimators (:func:`guardid.identify.methods.method_names`),
-    fitted and reported in this order; ``conditioning``: :class:`ConditioningOptions`
-    (None: all automatic); ``hopfield``: :class:`HopfieldSettings`; ``rls_lambda``: RLS
-    forgetting factor in (0, 1]; ``gradient_eta``: the gradient estimator's gain;
-    ``in_current_units``: no current-to-torque gain (estimates in the effort's unit).
+    ``methods``: names of registered estimators (:func:`guardid.identify.methods.method_names`;
+    a string is read as a comma-separated list), fitted and reported in this order;
+    ``conditioning``: :class:`ConditioningOptions` (None: all automatic); ``hopfield``:
+    :class:`HopfieldSettings`; ``rls_lambda``: RLS forgetting factor in (0, 1];
+    ``gradient_eta``: the gradient estimator's gain; ``in_current_units``: no
+    current-to-torque gain (estimates in the effort's unit).
     Whether the effort is measured torque comes with the data (:attr:`Run.torque`).
     """
 
@@ -87,7 +88,9 @@ class IdentifyOptions:
     in_current_units: bool = False
 
     def __post_init__(self):
-        object.__setattr__(self, "methods", tuple(self.methods))
+        m = self.methods
+        m = [x.strip() for x in m.split(",") if x.strip()] if isinstance(m, str) else m
+        object.__setattr__(self, "methods", tuple(m))
 
 
 def reference_method(results) -> str | None:
@@ -207,17 +210,18 @@ def identify(runs, description, options: IdentifyOptions | None = None) -> Ident
     options = options or IdentifyOptions()
     runs = list(runs)
     torque = _effort_is_torque(runs)
-    methods = methods_for(options.methods)
+    methods = methods_for(options.methods)  # unknown names refused before any work
     for check in dict.fromkeys(m.check for m in methods if m.check is not None):
         check(options.methods, runs, description)
+    # segments -> conditioned signals -> equation rows, every run on its own, rows stacked
     rows = stacked_rows(
         [_signals(r, runs) for r in runs], description, options.conditioning,
         in_current_units=options.in_current_units, effort_is_torque=torque,
         highest_harmonic_hz=runs[0].highest_harmonic_hz,
     )  # fmt: skip
     fit_rows = _fit_rows(rows, runs, description, options, torque)
-    results = _fit_all(methods, fit_rows)
-    return _result_of(fit_rows, results, options, torque)
+    results = _fit_all(methods, fit_rows)  # the estimators, in the order asked
+    return _result_of(fit_rows, results, options, torque)  # checks, warnings, motors
 
 
 def _effort_is_torque(runs) -> bool:
