@@ -43,8 +43,12 @@ def table(result, methods, description=None) -> str:
     """Base parameters per method: estimate, +- std where known, and the description's value;
     then the conditioning (cut-off and why, rows used and dropped) and the friction model."""
     head = f"{'parameter':10s} {'YAML':>10s}"
+    from guardid.closedloop import STD_NOT_HONEST
+
     for m in methods:
         label = m.upper() if result.results[m].converged else f"{m.upper()} (not converged)"
+        if m in STD_NOT_HONEST:  # its std fails the Monte Carlo: said in the header
+            label += " (std not honest)"
         head += f" {label:>21s}"
     lines = []
     if result.cutoff_reason:
@@ -83,6 +87,8 @@ def table(result, methods, description=None) -> str:
 
 def to_yaml_dict(result, description, log_path) -> dict:
     """The params.yaml content: per method values (and std), names, formulas, settings."""
+    from guardid.closedloop import STD_NOT_HONEST
+
     out = {
         "guardid-params": 1,
         "robot": description.name,
@@ -103,6 +109,9 @@ def to_yaml_dict(result, description, log_path) -> dict:
                  "stacked_error": float(r.d_stacked), "converged": bool(r.converged)}  # fmt: skip
         if r.std is not None:
             entry["std"] = [float(x) for x in r.std]
+        if m in STD_NOT_HONEST:
+            entry["std_honest"] = False
+            entry["std_note"] = STD_NOT_HONEST[m]
         out["methods"][m] = entry
     if result.motors:
         out["motors"] = [

@@ -20,15 +20,9 @@ import math
 
 import numpy as np
 
+from guardid.reproduce import common as cm
 from guardid.reproduce import flexsim as fs
-from guardid.reproduce.common import (
-    DEFAULT_SEEDS,
-    Report,
-    fmt_time_pi,
-    median_worst,
-    noise_seeds,
-    settle_time,
-)
+from guardid.reproduce.common import Report, fmt_time_pi, settle_time
 
 NAME = "seed000-step"
 T_STEP = 4 * math.pi
@@ -77,9 +71,9 @@ def mass(t: float) -> float:
     return 3.0 if t < T_STEP else 5.0
 
 
-def run(seed: int = 0, seeds: int = DEFAULT_SEEDS) -> Report:
+def run(seed: int = 0, seeds: int = cm.DEFAULT_SEEDS) -> Report:
     """Simulate, estimate (noisy rows over ``seeds`` noise draws from ``seed``), report."""
-    draws = noise_seeds(seed, seeds)
+    draws = cm.noise_seeds(seed, seeds)
     rep = Report(NAME, "seed 000 flexible link, experiment (a): mass 3 -> 5 kg at t = 4 pi s")
     rep.repairs = list(fs.REPAIRS)
     rep.assumptions = fs.noise_assumptions() + [
@@ -119,10 +113,10 @@ def run(seed: int = 0, seeds: int = DEFAULT_SEEDS) -> Report:
                 continue
             med, wst = {}, {}
             for key in ("start", "step"):
-                pairs = [median_worst([r[key][i] for r in per_seed], "time") for i in (0, 1)]
+                pairs = [cm.median_worst([r[key][i] for r in per_seed], "time") for i in (0, 1)]
                 med[key] = tuple(p[0] for p in pairs)
                 wst[key] = tuple(p[1] for p in pairs)
-            med["final_err"], wst["final_err"] = median_worst([r["final_err"] for r in per_seed])
+            med["final_err"], wst["final_err"] = cm.median_worst([r["final_err"] for r in per_seed])
             summary["hopfield"][(label, beta)] = {**med, "median": med, "worst": wst,
                                                   "per_seed": per_seed}  # fmt: skip
             rows.append([f"noisy median ({len(draws)})", f"{beta:g}", *_cells(med)])
