@@ -333,11 +333,10 @@ def test_a_step_that_leaves_the_physical_set_is_shortened():
     np.testing.assert_array_equal(est.theta_, [2.0, 1.0])
 
 
-def test_a_diverging_closed_loop_is_one_line_and_the_rest_is_reported(quiet_log, monkeypatch):
-    """identify --method wls,iv,didim where every closed-loop simulation diverges (the pan
-    inertia of the test above, stepped once per tick): no traceback; one warning line per
-    method naming it, the run and the time; their columns marked not converged; WLS (the
-    verdict's method) reported as usual, exit 0."""
+def _diverging_start(quiet_log, monkeypatch) -> None:
+    """Closed-loop fits start from WLS with the pan's inertia set to 0.01 kg m^2 at the
+    first row, simulated by the old simulator (no physical check, one RK4 step per 15 ms
+    tick: h c / m = 14, beyond RK4's 2.785): every simulation runs away."""
     import guardid.closedloop.rows as rows
     import guardid.closedloop.simulate as sim
     import guardid.estimators as estimators
@@ -355,8 +354,16 @@ def test_a_diverging_closed_loop_is_one_line_and_the_rest_is_reported(quiet_log,
             return self
 
     monkeypatch.setattr(estimators, "WeightedLeastSquares", SmallPanInertia)
-    for module in (sim, rows):  # the old simulator: no physical check, one step per tick
+    for module in (sim, rows):
         monkeypatch.setattr(module, "stiffness_substeps", lambda *a: 1)
+
+
+def test_a_diverging_closed_loop_is_one_line_and_the_rest_is_reported(quiet_log, monkeypatch):
+    """identify --method wls,iv,didim where every closed-loop simulation diverges (the pan
+    inertia of the test above, stepped once per tick): no traceback; one warning line per
+    method naming it, the run and the time; their columns marked not converged; WLS (the
+    verdict's method) reported as usual, exit 0."""
+    _diverging_start(quiet_log, monkeypatch)
     res = invoke("identify", quiet_log, "--method", "wls,iv,didim")
     assert_ok_or_one_line(res, "diverging closed loop")
     assert res.exit_code == 0, res.stderr
@@ -377,25 +384,7 @@ def test_a_diverging_closed_loop_is_one_line_and_the_rest_is_reported(quiet_log,
 def test_a_diverged_verdict_method_is_an_untrusted_result(quiet_log, monkeypatch):
     """--method iv alone: IV is the verdict's method; its simulation diverging makes the
     result untrusted (exit 4, one line naming IV); beside WLS it does not (test above)."""
-    import guardid.closedloop.rows as rows
-    import guardid.closedloop.simulate as sim
-    import guardid.estimators as estimators
-
-    run = load_run(quiet_log)
-    free = [MODEL.base.names.index(n) for n in identified_names(GUARD)]
-
-    class SmallPanInertia(estimators.WeightedLeastSquares):
-        def fit(self, A, y):
-            super().fit(A, y)
-            theta = TRUTH.copy()
-            theta[free] = self.theta_
-            theta[ZZ1R] -= _pan_inertia(theta, float(run.q[0, 1])) - 0.01
-            self.theta_ = theta[free]
-            return self
-
-    monkeypatch.setattr(estimators, "WeightedLeastSquares", SmallPanInertia)
-    for module in (sim, rows):
-        monkeypatch.setattr(module, "stiffness_substeps", lambda *a: 1)
+    _diverging_start(quiet_log, monkeypatch)
     res = invoke("identify", quiet_log, "--method", "iv")
     assert_ok_or_one_line(res, "diverged verdict method")
     assert res.exit_code == 4, res.stderr
