@@ -404,3 +404,27 @@ def test_didim_std_is_labelled_not_honest(closed_loop_result, tmp_path):
     assert "Monte Carlo" in data["methods"]["didim"]["std_note"]
     assert "std_honest" not in data["methods"]["iv"]
     assert any(w.startswith("didim: its std is not honest") for w in closed_loop_result.warnings)
+
+
+def test_untrusted_only_when_the_verdict_rests_on_an_unfinished_closed_loop_fit():
+    """trust_problems: a not-converged IV is a problem when IV is the verdict's method (no
+    WLS/LS ran), named with its stop reason when the result carries it; beside WLS it is
+    not; a converged IV is not."""
+    from guardid.estimators import LeastSquares
+    from guardid.identify.pipeline import MethodResult
+    from guardid.identify.untrusted import trust_problems
+
+    rng = np.random.default_rng(4)
+    A = rng.normal(size=(200, 2, 2))
+    y = A @ np.array([1.0, 2.0]) + rng.normal(scale=0.1, size=(200, 2))
+    ls = LeastSquares().fit(A, y)
+    names = ("a", "b")
+
+    def iv(converged, **settings):
+        return MethodResult("iv", ls.theta_, ls.std_, converged=converged, settings=settings)
+
+    wls = MethodResult("wls", ls.theta_, ls.std_)
+    assert trust_problems(ls, names, {"iv": iv(True)}) == []
+    assert trust_problems(ls, names, {"wls": wls, "iv": iv(False)}) == []
+    (only,) = trust_problems(ls, names, {"iv": iv(False, stopped="the run: diverged at t = 1 s")})
+    assert only.startswith("IV, the verdict's method, did not converge (the run: diverged at t")

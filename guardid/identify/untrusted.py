@@ -86,8 +86,9 @@ def trust_problems(ls, names, results: dict, motors=()) -> list[str]:
 
     ref = reference_method(results)
     if ref in ("iv", "didim") and not results[ref].converged:
+        why = results[ref].settings.get("stopped") or "--force shows its warning"
         problems.append(
-            f"{ref.upper()}, the verdict's method, did not converge (see its warning); "
+            f"{ref.upper()}, the verdict's method, did not converge ({why}); "
             "add wls to --method for a verdict that does not depend on it"
         )
     sigma = float(np.sqrt(max(float(getattr(ls, "sigma2_", np.nan)), 0.0)))
