@@ -195,7 +195,7 @@ def measure(q, tau, t, rng, exact_acceleration=False, qd=None, qdd=None, noise=T
     return meas
 
 
-ESTIMATORS = ("LS", "LS-mom", "RLS", "Hopfield", "gradient", "MLP")
+ESTIMATORS = ("LS-mom", "LS", "RLS", "Hopfield", "gradient", "MLP")
 """Columns in order; LS-mom (the filtered momentum form) in the default variant only."""
 
 
