@@ -22,8 +22,8 @@ NAMES = ("seed000-step", "seed000-slow", "seed000-fast", "seed001-table1")
     show_default=True,
     type=click.IntRange(min=1),
     help="Noise draws (seeds SEED, SEED+1, ...): every row that depends on the noise is"
-    " printed as the median and the worst over them. Time grows with it (idle, 15 seeds:"
-    " seed001-table1 ~25 s, seed000-* ~1 min).",
+    " printed as the median and the worst over them. Time grows with it (15 seeds:"
+    " about 30 s of CPU for seed001-table1 or seed000-fast).",
 )
 @click.option(
     "--exact-acceleration",
