@@ -51,8 +51,12 @@ def table(result, methods, description=None) -> str:
     :data:`SPREAD_NOTE`), and the description's value; then the conditioning (cut-off and
     why, rows used and dropped) and the friction model."""
     head = f"{'parameter':10s} {'YAML':>10s}"
+    from guardid.closedloop import STD_NOT_HONEST
+
     for m in methods:
         label = m.upper() if result.results[m].converged else f"{m.upper()} (not converged)"
+        if m in STD_NOT_HONEST:  # its std fails the Monte Carlo: said in the header
+            label += " (std not honest)"
         head += f" {label:>21s}"
     lines = []
     if result.cutoff_reason:
@@ -95,6 +99,8 @@ def table(result, methods, description=None) -> str:
 
 def to_yaml_dict(result, description, log_path) -> dict:
     """The params.yaml content: per method values (and std), names, formulas, settings."""
+    from guardid.closedloop import STD_NOT_HONEST
+
     out = {
         "guardid-params": 1,
         "robot": description.name,
@@ -118,6 +124,9 @@ def to_yaml_dict(result, description, log_path) -> dict:
         if r.output_spread is not None:  # not a std: nothing that reads "std" may take it
             entry["output_spread"] = [float(x) for x in r.output_spread]
             entry["output_spread_is"] = SPREAD_NOTE.removeprefix("MLP ~: ")
+        if m in STD_NOT_HONEST:
+            entry["std_honest"] = False
+            entry["std_note"] = STD_NOT_HONEST[m]
         out["methods"][m] = entry
     if result.motors:
         out["motors"] = [

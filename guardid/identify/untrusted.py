@@ -8,6 +8,11 @@ identify`` joins them into its one-line refusal (``--force`` writes the paramete
 * a zero regressor column: the motion never excites that parameter;
 * a rank-deficient regressor: after scaling every column to unit norm, a singular value at
   or below ``s_max * max(rows, columns) * eps`` (numpy's ``matrix_rank`` tolerance);
+* the verdict's method (:func:`guardid.identify.pipeline.reference_method`) is a closed-loop
+  one (IV, DIDIM) that did not converge (its simulation diverged, could not be run with a
+  physical parameter set, or did not settle): the verdict would rest on an unfinished
+  estimate. A closed-loop method beside WLS or LS does not make the result untrusted (it is
+  marked not converged, with its warning).
 * a nearly unexcited regressor: along the least-determined direction of the column-scaled
   parameters, the LS standard deviation ``sigma / s_min`` exceeds the size of the whole
   scaled estimate ``||diag(c) theta||`` (c the column norms, i.e. each parameter's torque
@@ -77,6 +82,15 @@ def trust_problems(ls, names, results: dict, motors=()) -> list[str]:
                if not np.isfinite(x)]  # fmt: skip
         if bad:
             problems.append(f"{method.upper()} estimate not finite for {', '.join(bad)}")
+    from guardid.identify.pipeline import reference_method
+
+    ref = reference_method(results)
+    if ref in ("iv", "didim") and not results[ref].converged:
+        why = results[ref].settings.get("stopped") or "--force shows its warning"
+        problems.append(
+            f"{ref.upper()}, the verdict's method, did not converge ({why}); "
+            "add wls to --method for a verdict that does not depend on it"
+        )
     sigma = float(np.sqrt(max(float(getattr(ls, "sigma2_", np.nan)), 0.0)))
     regressor = regressor_problems(ls.R_, ls.n_rows_, sigma, ls.theta_, names)
     problems += regressor

@@ -256,8 +256,11 @@ def parameter_table(result, reference=None, reference_label="reference") -> str:
     head += "<th>description (YAML)</th>"
     if reference:
         head += f"<th>{_esc(reference_label)}</th>"
+    from guardid.closedloop import STD_NOT_HONEST
+
     for m in methods:
-        head += f"<th>{_esc(m.upper())}</th>"
+        note = " (std not honest)" if m in STD_NOT_HONEST else ""
+        head += f"<th>{_esc(m.upper() + note)}</th>"
     head += "<th>formula</th></tr>"
     rows = [head]
     for k, name in enumerate(result.names):
