@@ -283,7 +283,8 @@ class _ClosedLoop(Method):
         flags = (rows.options.in_current_units, rows.effort_is_torque)
         est, notes = fit_closed_loop(self.name, rows.A, rows.y, rows.rows, (runs, *per_run),
                                      rows.description, rows.model, rows.free, flags)  # fmt: skip
-        return MethodFit.of(est, converged=bool(est.converged), notes=notes)
+        settings = {"stopped": est.stopped} if getattr(est, "stopped", "") else {}
+        return MethodFit.of(est, converged=bool(est.converged), notes=notes, settings=settings)
 
 
 @register("iv")
