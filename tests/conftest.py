@@ -41,3 +41,12 @@ def gap_guard_wls_params(gap_guard_captures, tmp_path_factory) -> dict:
             res = invoke("identify", log, "--method", "wls", "-o", out[seed])
             assert res.exit_code == 0, res.stderr
     return out
+
+
+@pytest.fixture(scope="session")
+def seed001_table1_report():
+    """``guardid reproduce seed001-table1`` at its defaults (15 noise seeds), run once per
+    session (about 25 s of CPU): shared by test_reproduce and test_mlp_reproduce."""
+    from guardid.reproduce import seed001_table1
+
+    return seed001_table1.run(0)

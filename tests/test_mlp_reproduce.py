@@ -13,8 +13,8 @@ from guardid.robot import load_robot
 
 
 @pytest.fixture(scope="module")
-def table1():
-    return seed001_table1.run(0)
+def table1(seed001_table1_report):
+    return seed001_table1_report
 
 
 def test_mlp_mean_estimate_within_2pct_of_truth(table1):
@@ -26,7 +26,7 @@ def test_mlp_mean_estimate_within_2pct_of_truth(table1):
     s = table1.summary
     np.testing.assert_allclose(s["true"], [1.5, 0.5, 0.25, 1.5, 1.0], rtol=1e-12)
     assert np.all(s["pct_error"]["MLP"] < 2.0), s["pct_error"]["MLP"]
-    exact = seed001_table1.run(0, exact_acceleration=True).summary
+    exact = seed001_table1.run(0, exact_acceleration=True, seeds=3).summary
     assert np.all(exact["pct_error"]["MLP"] < 2.0), exact["pct_error"]["MLP"]
     # a trained network's output hardly varies with the state
     assert np.all(exact["mlp_spread"] < 0.01 * exact["true"]), exact["mlp_spread"]
@@ -52,7 +52,7 @@ def test_table_prints_every_method_and_the_paper_nn_column(table1):
 
 
 def test_cli_prints_mlp_and_wall_time():
-    res = CliRunner().invoke(main, ["reproduce", "seed001-table1"])
+    res = CliRunner().invoke(main, ["reproduce", "seed001-table1", "--seeds", "1"])
     assert res.exit_code == 0, res.output
     assert "paper NN" in res.output and "MLP" in res.output
     assert "wall time:" in res.output
