@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -191,6 +191,7 @@ def identify(
         from guardid.closedloop import check_inputs
 
         check_inputs(methods, description, setpoints, ticks)
+        conditioning = closed_loop_equation(conditioning)
     model = build_model(description)
     several = isinstance(t_s, (list, tuple))
     runs = list(zip(t_s, q_rad, current_a, strict=True)) if several else [(t_s, q_rad, current_a)]
@@ -297,6 +298,17 @@ def identify(
 MOVING_PCT = 10.0
 """Warn when a well-identified parameter moves more than this [%] between the chosen cut-off
 and a neighbouring candidate."""
+
+
+def closed_loop_equation(options):
+    """IV and DIDIM condition their simulated closed loop like the measured run, row for row;
+    that holds for the acceleration form only (the momentum form's per-joint cuts follow the
+    measured run's stops): the automatic equation becomes "acceleration" for them."""
+    options = options or ConditioningOptions()
+    if options.equation == "momentum":
+        raise GuardidError("--method iv/didim: not with --equation momentum (their simulated "
+                           "closed loop is conditioned in the acceleration form)")  # fmt: skip
+    return replace(options, equation="acceleration")
 
 
 def _moving_with_cutoff(choice, names, ls) -> list[str]:
