@@ -15,9 +15,20 @@ Fv (q_k - q_(k-1)) exactly, sign-model Coulomb friction Fc T sign(q_k - q_(k-1))
 moves the same way through the period: periods near a stop or reversal are cut), the offset
 Fo T, the rest (gravity, Coriolis, smooth friction shapes) by the four-point rule
 T/24 (-f_(k-2) + 13 f_(k-1) + 13 f_k - f_(k+1)) (fourth order). Velocities at the ticks
-come from the raw positions by a central difference (three points by default); nothing
-is low-passed before the regressor. Logs of instantaneous torque samples: the impulse is
-the same four-point rule applied to the torque.
+come from the raw positions by a central difference (three points); nothing is low-passed
+before the regressor. Logs of instantaneous torque samples: the impulse is the same
+four-point rule applied to the torque.
+
+The stencil's own error, for a guardid log's voltage-driven motors: the voltage held over
+each period makes the net torque, and so the acceleration, step at every tick, and the
+three-point difference then errs by T (a_after - a_before) / 4 instead of O(T^2)
+(:func:`kink_weights`); within a period the back-EMF makes the current fall as the joint
+speeds up, a slope -(D + Fv) a of the net torque (D = N eta Kt N Ke / R, the drive's
+electrical damping from the robot description; :func:`slope_weights`). Both momentum
+errors are linear: the drive's part moves to the impulse side (:func:`kink_correction`,
+:func:`slope_term`), the rest's to the regressor (its period integrals, the Fv column).
+On the plant's true positions and currents this takes the bias left by the stencil from
+about 0.1 to below 0.01 of the measured std (``bench/bench_bias_sources.py``).
 
 Then one causal Butterworth low-pass (order :data:`DEFAULT_ORDER`, cut-off chosen by
 :func:`momentum_cutoff`) runs over the impulses and over every column alike: a linear
@@ -73,6 +84,7 @@ class MomentumState:
     skip: int  # outputs dropped after each start
     rows: np.ndarray  # (M,) tick index of each kept row
     row_mask: np.ndarray  # (M, n) filtered equation valid at the row
+    kink: int | None = None  # the stencil whose kink correction the rows carry
 
 
 def momentum_cutoff(fs_hz: float, bandwidth_hz: float, from_harmonic: bool) -> float:
@@ -149,13 +161,42 @@ def kink_weights(points: int = 3) -> tuple[np.ndarray, int]:
     return W, first
 
 
-def kink_correction(torque_mean, dt: float, points: int = 3) -> np.ndarray:
+def slope_weights(points: int = 3) -> tuple[np.ndarray, int]:
+    """(U, first): the stencil's velocity error per unit of each period's acceleration slope,
+    v_hat_k - v_k = ... + T^2 sum_i U[i] a'(period ending at tick k + first + i) [-]
+    (a linear acceleration over each period: the period-mean part is :func:`kink_weights`')."""
+    coef, reach = STENCILS[points]
+    first = -reach + 1
+    U = np.zeros(2 * reach)
+    for m_idx, c in enumerate(coef):
+        m = m_idx - reach
+        for i in range(1, m + 1):  # m > 0: the periods from tick k to k + m
+            U[i - first] -= c / 12.0
+        for i in range(m + 1, 1):  # m < 0: from tick k + m to k
+            U[i - first] += c / 12.0
+    return U, first
+
+
+def slope_term(v, dt: float, points: int = 3) -> np.ndarray:
+    """(N, n) [rad | m]: s_k - s_(k-1) with s_k = T sum_i U_i (v_i - v_(i-1))
+    (:func:`slope_weights`, v the tick velocities): within a period the held voltage's
+    current falls with the back-EMF (and viscous friction grows), so the net torque has a
+    slope -(D + Fv) a; the stencil's momentum error from it is (D + Fv) s_k (D the drive's
+    electrical damping)."""
+    U, first = slope_weights(points)
+    dv = np.zeros_like(v)
+    dv[1:] = v[1:] - v[:-1]
+    return kink_correction(dv, dt, points, U, first)
+
+
+def kink_correction(torque_mean, dt: float, points: int = 3, W=None, first=None) -> np.ndarray:
     """(N, n) to add to the period impulses [torque x s]: e_k - e_(k-1) with e_k = T sum_i
     W_i tau_i (:func:`kink_weights`, tau_i the drive's period-mean torque): the momentum
     error the stencil's velocity makes at tick k where the drive torque steps at the ticks
     (M a jumps by the drive's jump; the rest of the torque is continuous while the joint
     moves). Zero where the stencil leaves the log (those periods are cut anyway)."""
-    W, first = kink_weights(points)
+    if W is None:
+        W, first = kink_weights(points)
     tau = np.asarray(torque_mean, dtype=float)
     n = len(tau)
     e = np.zeros_like(tau)
@@ -168,9 +209,25 @@ def kink_correction(torque_mean, dt: float, points: int = 3) -> np.ndarray:
     return out
 
 
-def period_regressor(model, q, v, dt: float) -> np.ndarray:
+def electrical_damping(description, gain) -> np.ndarray:
+    """(n,) D = gain x N Ke / R per joint: the period-mean effort's loss per unit joint speed
+    from the back-EMF [N m s/rad with the gain, A s/rad without] (0 without a drive)."""
+    out = np.zeros(len(description.joints))
+    for j, joint in enumerate(description.joints):
+        d = joint.drive
+        if d is not None and d.resistance > 0:
+            out[j] = d.gear_ratio * d.ke / d.resistance
+    return out * (1.0 if gain is None else np.asarray(gain, dtype=float))
+
+
+def period_regressor(model, q, v, dt: float, kink_points: int | None = None) -> np.ndarray:
     """Phi (N, n, b) base regressor of the period equations (module docstring): row k is the
-    period ending at tick k (rows 0, 1 and N-1 are not defined and are zero)."""
+    period ending at tick k (rows 0, 1 and N-1 are not defined and are zero).
+
+    ``kink_points``: the velocities come from that stencil and the drive steps at the ticks;
+    the stencil's momentum error from the steps of the rest of the torque (its period
+    integrals R_k, linear in the parameters) is added, :func:`kink_correction` of R / T, as
+    the drive's is to the impulses: together the net torque's steps."""
     n_t, n = q.shape
     B = model.base.B
     p_mom = model.momentum_regressor(q, v) @ B
@@ -194,10 +251,20 @@ def period_regressor(model, q, v, dt: float) -> np.ndarray:
     del rest_full
     out = np.zeros_like(exact)
     if n_t >= 4:
-        out[1:] = p_mom[1:] - p_mom[:-1]
         w = QUADRATURE * dt
-        out[2:-1] += w[0] * rest[:-3] + w[1] * rest[1:-2] + w[2] * rest[2:-1] + w[3] * rest[3:]
-        out += exact
+        integral = exact  # R_k: the rest's integral over period k
+        integral[2:-1] += (w[0] * rest[:-3] + w[1] * rest[1:-2] + w[2] * rest[2:-1]
+                           + w[3] * rest[3:])  # fmt: skip
+        integral[[0, 1, -1]] = 0.0
+        out[1:] = p_mom[1:] - p_mom[:-1]
+        out += integral
+        if kink_points:
+            out += kink_correction(integral / dt, dt, kink_points)
+            slope = slope_term(v, dt, kink_points)
+            for j in range(n):  # viscous friction's share of the net torque's slope
+                k = model.friction_index(j)
+                if k is not None:
+                    out[:, j, :] += np.outer(slope[:, j], B[k])
         out[[0, 1, -1]] = 0.0
     return out
 
@@ -259,7 +326,8 @@ def at_stop(q, position_limits, resolution=None) -> np.ndarray:
 
 def period_validity(n_t, broken, vel_reach, bad):
     """(N, n) bool: period k usable for joint j: every tick its terms use (k-2-reach ..
-    k+1+reach) lies in one unbroken stretch of the log, and no flagged tick of joint j
+    k+1+reach; ``vel_reach`` the velocity stencil's, twice it with the kink correction)
+    lies in one unbroken stretch of the log, and no flagged tick of joint j
     lies within that span plus :data:`MARGIN_TICKS`. ``broken`` (N,): the period ending at
     tick k is missing (a lost tick, a gap)."""
     lo, hi = 2 + vel_reach, 1 + vel_reach
@@ -311,7 +379,7 @@ def filtered_rows(Phi, imp, valid, sos, skip: int, decimate: int):
 def regressor_rows(state: MomentumState, model) -> np.ndarray:
     """The filtered period regressor (M, n, b) of ``model`` on the rows of ``state`` (another
     parameter set's model scored on the same rows) [torque units]."""
-    Phi = period_regressor(model, state.q, state.v, state.dt)
+    Phi = period_regressor(model, state.q, state.v, state.dt, state.kink)
     A, _, _ = _filter_stretches(Phi, np.zeros(Phi.shape[:2]), state.valid, state.sos, state.skip)
     return A[state.rows] * state.row_mask[:, :, None] / state.dt
 
@@ -365,17 +433,20 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
     if position_limits is not None:
         stop = at_stop(q, position_limits)
     bad = slow | stop[:, None]
-    valid = period_validity(len(t), broken, reach, bad)
-    cut = ~period_validity(len(t), broken, reach, np.zeros_like(bad))  # ends, gaps
-    cut_slow = ~period_validity(len(t), broken, reach, slow) & ~cut
+    kink = points if velocity is None and not effort_is_torque else None  # steps at ticks
+    span = 2 * reach if kink else reach  # the kink correction reaches one stencil further
+    valid = period_validity(len(t), broken, span, bad)
+    cut = ~period_validity(len(t), broken, span, np.zeros_like(bad))  # ends, gaps
+    cut_slow = ~period_validity(len(t), broken, span, slow) & ~cut
     cut_stop = ~valid & ~cut & ~cut_slow
     sos = filter_sos(cutoff_hz, fs, order)
     skip = transient_samples(sos)
     k = decimation(fs, cutoff_hz) if decimate is None else int(decimate)
-    Phi = period_regressor(model, q, v, dt)
+    Phi = period_regressor(model, q, v, dt, kink)
     imp = period_impulse(effort, dt, gain, effort_is_torque)
-    if velocity is None and not effort_is_torque:  # the drive steps at the ticks
+    if kink:
         imp = imp + kink_correction(imp / dt, dt, points)
+        imp = imp - electrical_damping(model.description, gain) * slope_term(v, dt, points)
     A_all, y_all, good = _filter_stretches(Phi, imp, valid, sos, skip)
     del Phi
     rows = np.arange(0, len(t), k)
@@ -386,7 +457,7 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
     mask = np.any(jm, axis=1)
     qdd = np.zeros_like(v)
     qdd[1:-1] = (v[2:] - v[:-2]) / (2.0 * dt)
-    state = MomentumState(q, v, dt, valid, sos, skip, rows, jm)
+    state = MomentumState(q, v, dt, valid, sos, skip, rows, jm, kink)
     share = 100.0 * valid.sum(0) / max(len(t), 1)
     notes = [
         f"cut-off {cutoff_hz:.3g} Hz",
