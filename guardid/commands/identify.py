@@ -134,8 +134,9 @@ _PARALLEL_HELP = (
     "off; 0 = off]."
 )
 _CUTOFF_HELP = (
-    "Cut-off [Hz] of the one filter on both sides of the momentum form [default: 4 x the "
-    "excitation's highest harmonic, else 2 x the positions' 99.5 % band], or of the low-pass "
+    "Cut-off [Hz] of the one filter on both sides of the momentum form [default: 2 x the "
+    "excitation's highest harmonic (else the positions' 99.5 % band), at least 2 Hz], or of "
+    "the low-pass "
     "on positions and efforts of the acceleration form [default: chosen from the data by "
     "cross-validation, docs/VALIDATION.md]."
 )
