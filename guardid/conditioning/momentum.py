@@ -395,7 +395,8 @@ def regressor_rows(state: MomentumState, model) -> np.ndarray:
 def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: int = DEFAULT_ORDER,
                        decimate: int | None = None, effort_is_torque: bool = False,
                        stiction_threshold=None, flat_is_stuck: bool = False,
-                       position_limits=None, points: int = 3, velocity=None):  # fmt: skip
+                       position_limits=None, points: int | None = None,
+                       velocity=None):  # fmt: skip
     """One run in the momentum form: (Conditioned, Phi (M, n, b) filtered base regressor of
     all base columns [torque units], y (M, n) filtered drive torque) on every ``decimate``-th
     tick (default about 1 / (2 fc) apart); the usable rows are ``cond.mask``, each joint's
@@ -408,7 +409,8 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
     (NaN: 5 % of the joint's peak speed; 0: never flagged by speed); ``flat_is_stuck``: a
     period without an encoder count flags its ticks; ``position_limits`` (n, 2) or None.
     ``velocity`` (N, n) [unit/s]: measured joint velocities, used instead of the difference
-    stencil (``points``: 3 or 5).
+    stencil (``points``: 3, or 5; default 3 with its corrections for a period-mean current,
+    5 for torque samples, whose motion is smooth).
     """
     from guardid.conditioning.pipeline import Conditioned
 
@@ -421,6 +423,8 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
     fs = 1.0 / dt
     broken = np.zeros(len(t), dtype=bool)
     broken[1:] = np.abs(steps - dt) > 1e-6 * dt
+    if points is None:  # torque samples: smooth motion, the fourth-order stencil
+        points = 5 if effort_is_torque else 3
     if velocity is None:
         v, vel_ok = tick_velocity(q, dt, points)
         reach = STENCILS[points][1]
