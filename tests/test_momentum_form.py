@@ -274,3 +274,22 @@ def test_old_params_files_validate_in_the_acceleration_form():
     assert stored_conditioning("p.yaml", older).equation == "acceleration"
     new = {"conditioning": {"cutoff_hz": 2.0, "order": 2, "equation": "momentum"}}
     assert stored_conditioning("p.yaml", new).equation == "momentum"
+
+
+def test_rows_of_other_positions_line_up_with_the_measured_ones(plant_run):
+    """``momentum_rows_of`` (instruments from a simulated run) on the measured positions
+    themselves gives the measured rows' regressor; on the true positions rows close to them
+    (the same cuts and filter; the difference is the quantisation)."""
+    from guardid.identify.rows import momentum_rows_of
+
+    t, q, _, _, q_meas, i_meas = plant_run
+    desc = load_robot("guard")
+    model = build_model(desc)
+    free = free_columns(model, desc)
+    rows = stacked_rows([(t, q_meas, i_meas)], desc, ConditioningOptions(equation="momentum"))
+    again = momentum_rows_of(rows, 0, q_meas, model, free)
+    np.testing.assert_allclose(again, rows.A, rtol=0, atol=1e-12 * np.abs(rows.A).max())
+    true = momentum_rows_of(rows, 0, q, model, free)
+    assert true.shape == rows.A.shape
+    rel = np.linalg.norm(true - rows.A) / np.linalg.norm(rows.A)
+    assert 0 < rel < 0.05

@@ -44,7 +44,7 @@ units); a joint whose filtered equation is not valid at a kept instant has a zer
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.signal import butter, sosfilt
@@ -93,6 +93,7 @@ class MomentumState:
     rows: np.ndarray  # (M,) tick index of each kept row
     row_mask: np.ndarray  # (M, n) filtered equation valid at the row
     kink: int | None = None  # the stencil whose kink correction the rows carry
+    points: int = 3  # the velocity stencil (or 5 for measured velocities: rows_like)
 
 
 def momentum_cutoff(fs_hz: float, bandwidth_hz: float, from_harmonic: bool) -> float:
@@ -384,6 +385,14 @@ def filtered_rows(Phi, imp, valid, sos, skip: int, decimate: int):
     return rows, A[rows] * mask[:, :, None], y[rows] * mask, mask
 
 
+def rows_like(state: MomentumState, model, q) -> np.ndarray:
+    """The filtered period regressor (M, n, b) [torque units] of positions ``q`` (N, n) on
+    the ticks, cuts, filter and kept rows of ``state`` (velocities from ``q`` by the same
+    stencil): a simulated run's rows aligned with the measured one's."""
+    v, _ = tick_velocity(q, state.dt, state.points)
+    return regressor_rows(replace(state, q=q, v=v), model)
+
+
 def regressor_rows(state: MomentumState, model) -> np.ndarray:
     """The filtered period regressor (M, n, b) of ``model`` on the rows of ``state`` (another
     parameter set's model scored on the same rows) [torque units]."""
@@ -469,7 +478,8 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
     mask = np.any(jm, axis=1)
     qdd = np.zeros_like(v)
     qdd[1:-1] = (v[2:] - v[:-2]) / (2.0 * dt)
-    state = MomentumState(q, v, dt, valid, sos, skip, rows, jm, kink)
+    state = MomentumState(q, v, dt, valid, sos, skip, rows, jm, kink,
+                          points if velocity is None else 5)  # fmt: skip
     share = 100.0 * valid.sum(0) / max(len(t), 1)
     notes = [
         f"cut-off {cutoff_hz:.3g} Hz",

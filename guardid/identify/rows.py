@@ -69,7 +69,9 @@ class Rows:
     ``cond``: the runs' conditioned signals joined; ``A`` (M, n, b') base regressor of the
     identified columns; ``y`` (M, n) effort minus the known torque [N m | N | effort unit];
     ``options``: the options used, cut-off resolved; ``choice``: the cut-off's
-    cross-validation (None when given); ``warnings``: doubts about the conditioning.
+    cross-validation (None when given); ``warnings``: doubts about the conditioning;
+    ``runs``: per run its own conditioned signals (the momentum form: what
+    :func:`momentum_rows_of` needs).
     """
 
     cond: object
@@ -78,6 +80,7 @@ class Rows:
     options: ConditioningOptions
     choice: CutoffChoice | None = None
     warnings: list[str] = field(default_factory=list)
+    runs: list = field(default_factory=list)
 
     def __iter__(self):  # (cond, A, y), as before
         return iter((self.cond, self.A, self.y))
@@ -580,7 +583,16 @@ def _momentum_rows(runs, description, options, model, free, in_current_units, ef
     joined.notes.insert(0, reason)
     choice = CutoffChoice(float(cutoff), reason.split(": ", 1)[-1], [float(cutoff)])
     return Rows(joined, A, y, used, choice if options.cutoff_hz is None else None,
-                _doubts(conds, None))  # fmt: skip
+                _doubts(conds, None), conds)  # fmt: skip
+
+
+def momentum_rows_of(rows: Rows, run: int, q, model, free) -> np.ndarray:
+    """(M_run, n, b') run ``run``'s usable rows of the momentum form recomputed from other
+    positions ``q`` (N, n) on the same ticks (e.g. its closed loop simulated, for
+    instruments): the measured run's cuts, filter and kept rows, velocities from ``q``."""
+    cond = rows.runs[run]
+    A_all = mom.rows_like(cond.momentum, model, np.asarray(q, dtype=float))
+    return A_all[cond.mask][:, :, free]
 
 
 def predicted_effort(cond, model, theta) -> np.ndarray:
