@@ -75,6 +75,8 @@ TRANSIENT_RATIO = 0.05
 fraction of the steady-state weight of all the others (:func:`transient_samples`) [-]."""
 QUADRATURE = np.array([-1.0, 13.0, 13.0, -1.0]) / 24.0
 """Four-point rule over ticks k-2 .. k+1 for the integral over (t_(k-1), t_k] [x T]."""
+TICKS_CHUNK = 8192
+"""Ticks whose full regressors are formed at a time (peak memory of long logs)."""
 STENCILS = {3: (np.array([-0.5, 0.0, 0.5]), 1), 5: (np.array([1, -8, 0, 8, -1]) / 12.0, 2)}
 """Central first-difference stencils (coefficients x 1/T, reach in ticks)."""
 
@@ -239,25 +241,30 @@ def period_regressor(model, q, v, dt: float, kink_points: int | None = None) -> 
     the drive's is to the impulses: together the net torque's steps."""
     n_t, n = q.shape
     B = model.base.B
-    p_mom = model.momentum_regressor(q, v) @ B
-    rest_full = model.rest_regressor(q, v)
     exact = np.zeros((n_t, n, B.shape[1]))
     dq = np.zeros_like(q)
     dq[1:] = q[1:] - q[:-1]
+    exact_cols = []  # (joint, full-parameter columns integrated exactly)
     for j, joint in enumerate(model.description.joints):
         k = model.friction_index(j)
         if k is None:
             continue
-        fr = joint.friction
         exact[:, j, :] += np.outer(dq[:, j], B[k])  # viscous: Fv (q_k - q_(k-1))
         exact[:, j, :] += dt * B[k + 2]  # offset: Fo T
-        rest_full[:, j, k] = 0.0
-        rest_full[:, j, k + 2] = 0.0
-        if fr.model == "sign":  # the joint moves one way through the period
+        cols = [k, k + 2]
+        if joint.friction.model == "sign":  # the joint moves one way through the period
             exact[:, j, :] += np.outer(dt * np.sign(dq[:, j]), B[k + 1])
-            rest_full[:, j, k + 1] = 0.0
-    rest = rest_full @ B
-    del rest_full
+            cols.append(k + 1)
+        exact_cols.append((j, cols))
+    p_mom, rest = np.empty_like(exact), np.empty_like(exact)
+    for s in range(0, n_t, TICKS_CHUNK):  # per tick; the full-parameter temporaries in chunks
+        c = slice(s, s + TICKS_CHUNK)
+        p_mom[c] = model.momentum_regressor(q[c], v[c]) @ B
+        rest_full = model.rest_regressor(q[c], v[c])
+        for j, cols in exact_cols:
+            rest_full[:, j, cols] = 0.0
+        rest[c] = rest_full @ B
+        del rest_full
     out = np.zeros_like(exact)
     if n_t >= 4:
         w = QUADRATURE * dt
