@@ -551,10 +551,10 @@ def _momentum_rows(runs, description, options, model, free, in_current_units, ef
         src = "the excitation's highest harmonic" if highest_harmonic_hz else "the positions' "
         src += "" if highest_harmonic_hz else "99.5 % energy bandwidth"
         factor = mom.HARMONIC_FACTOR if highest_harmonic_hz else mom.SPECTRUM_FACTOR
-        reason = (f"cut-off {cutoff:g} Hz: {factor:g} x {src} ({band:.3g} Hz), at least "
-                  f"{mom.MIN_CUTOFF_HZ:g} Hz")  # fmt: skip
+        reason = (f"cut-off {cutoff:g} Hz of the momentum form's filter: {factor:g} x {src} "
+                  f"({band:.3g} Hz), at least {mom.MIN_CUTOFF_HZ:g} Hz")  # fmt: skip
     else:
-        reason = f"cut-off {cutoff:g} Hz set by the caller"
+        reason = f"cut-off {cutoff:g} Hz of the momentum form's filter, set by the caller"
     used = replace(options, cutoff_hz=float(cutoff), friction_filter=False)
     gain = _gain(description, in_current_units, effort_is_torque)
     limits = position_limits(description)
