@@ -145,8 +145,9 @@ _EQUATION_HELP = (
     "momentum M(q) qd + integral of the rest; nothing differentiated twice, one causal "
     "filter on both sides, DESIGN.md 5b) or acceleration (tau = Y(q, qd, qdd) theta on "
     "low-passed, twice-differentiated positions) [default: momentum for motor-current logs "
-    "on a tick grid, acceleration for measured torque, uneven time stamps, --parallel-filter "
-    "and --method iv/didim]. Recorded in params.yaml (conditioning.equation)."
+    "on a tick grid, acceleration for measured torque, uneven time stamps and "
+    "--parallel-filter; iv and didim always fit the acceleration form's rows]. Recorded in "
+    "params.yaml (conditioning.equation)."
 )
 
 
