@@ -118,8 +118,20 @@ _PARALLEL_HELP = (
     "off; 0 = off]."
 )
 _CUTOFF_HELP = (
-    "Low-pass cut-off on positions and efforts [Hz] [default: chosen from the data by "
+    "Cut-off [Hz] of the one filter on both sides of the momentum form [default: 2 x the "
+    "excitation's highest harmonic (else the positions' 99.5 % band), at least 2 Hz], or of "
+    "the low-pass "
+    "on positions and efforts of the acceleration form [default: chosen from the data by "
     "cross-validation, docs/VALIDATION.md]."
+)
+_EQUATION_HELP = (
+    "Model equation of the rows: momentum (per period, drive impulse = change of the "
+    "momentum M(q) qd + integral of the rest; nothing differentiated twice, one causal "
+    "filter on both sides, DESIGN.md 5b) or acceleration (tau = Y(q, qd, qdd) theta on "
+    "low-passed, twice-differentiated positions) [default: momentum for motor-current logs "
+    "on a tick grid, acceleration for measured torque, uneven time stamps and "
+    "--parallel-filter; iv and didim always fit the acceleration form's rows]. Recorded in "
+    "params.yaml (conditioning.equation)."
 )
 
 
@@ -138,6 +150,10 @@ class _MethodOption(click.Option):
 @click.option("--robot", default=None, help="Shipped robot or YAML path [default: the log's].")
 @click.option("--method", cls=_MethodOption, default="ls,wls,rls,hopfield", show_default=True)
 @click.option("--cutoff", type=_POSITIVE, default=None, help=_CUTOFF_HELP)
+@click.option(
+    "--equation", type=click.Choice(["momentum", "acceleration"]), default=None,
+    help=_EQUATION_HELP,
+)  # fmt: skip
 @click.option("--beta", type=_POSITIVE, default=0.01, show_default=True, help="Hopfield gain beta.")
 @click.option(
     "--lam",
@@ -184,8 +200,8 @@ class _MethodOption(click.Option):
 )
 @_foreign_options
 def identify(
-    log, robot, method, cutoff, beta, lam, eta, current_units, output, plot_path, report_path,
-    parallel_hz, consistent, cv, force, **foreign,
+    log, robot, method, cutoff, equation, beta, lam, eta, current_units, output, plot_path,
+    report_path, parallel_hz, consistent, cv, force, **foreign,
 ):  # fmt: skip
     """Identify the robot's base parameters and motor constants from LOG [LOG ...].
 
@@ -218,10 +234,11 @@ def identify(
     from guardid.identify.methods import methods_for
 
     methods_for(methods)  # an unknown method is an option error, before any log is named
+    conditioning = ConditioningOptions(cutoff_hz=cutoff, parallel_filter_hz=parallel_hz,
+                                       equation=equation)  # fmt: skip
     options = IdentifyOptions(
-        methods=methods, conditioning=ConditioningOptions(cutoff_hz=cutoff,
-        parallel_filter_hz=parallel_hz), hopfield=HopfieldSettings(beta=beta), rls_lambda=lam,
-        gradient_eta=eta, in_current_units=current_units,
+        methods=methods, conditioning=conditioning, hopfield=HopfieldSettings(beta=beta),
+        rls_lambda=lam, gradient_eta=eta, in_current_units=current_units,
     )  # fmt: skip
     if cv:
         _cross_validate(logs, runs, description, options)

@@ -79,6 +79,7 @@ class MethodFit:
     notes: list[str] = field(default_factory=list)
     extra: dict[str, MethodFit] = field(default_factory=dict)
     output_spread: np.ndarray | None = None  # MLP: its output's spread over the rows
+    rows: object = None  # the Rows it was fitted on, when not FitRows.rows (iv, didim)
 
     def __post_init__(self):
         self.theta = np.asarray(self.theta, dtype=float)
@@ -277,14 +278,21 @@ class _ClosedLoop(Method):
 
     def fit(self, rows):
         from guardid.closedloop import fit_closed_loop
+        from guardid.identify.pipeline import closed_loop_rows
 
+        own = closed_loop_rows(rows)  # the acceleration form (module docstring there)
         runs = [(r.t, r.q, r.current) for r in rows.runs]
         per_run = [[getattr(r, k) for r in rows.runs] for k in ("ticks", "setpoint", "voltage")]
         flags = (rows.options.in_current_units, rows.effort_is_torque)
-        est, notes = fit_closed_loop(self.name, rows.A, rows.y, rows.rows, (runs, *per_run),
+        est, notes = fit_closed_loop(self.name, own.A, own.y, own, (runs, *per_run),
                                      rows.description, rows.model, rows.free, flags)  # fmt: skip
+        if own is not rows.rows:
+            notes = [f"{self.name}: fitted in the acceleration form (its simulated closed loop "
+                     "is conditioned like the measured run in that form); the other methods: "
+                     "momentum form", *notes]  # fmt: skip
         settings = {"stopped": est.stopped} if getattr(est, "stopped", "") else {}
-        return MethodFit.of(est, converged=bool(est.converged), notes=notes, settings=settings)
+        return MethodFit.of(est, converged=bool(est.converged), notes=notes, settings=settings,
+                            rows=None if own is rows.rows else own)  # fmt: skip
 
 
 @register("iv")

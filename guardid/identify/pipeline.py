@@ -13,7 +13,7 @@ bridges by resampling. Everything :func:`identify` is told besides the data is o
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -120,6 +120,7 @@ class MethodResult:
     cov: np.ndarray | None = None
     notes: list[str] = field(default_factory=list)
     output_spread: np.ndarray | None = None  # MLP: its output's spread over the rows, not a std
+    fitted_on: object = None  # the Rows it was fitted on when not the other methods' (iv/didim)
 
 
 @dataclass
@@ -256,15 +257,54 @@ def _fit_rows(rows, runs, description, options, torque) -> FitRows:
 
 
 def _fit_all(methods, rows: FitRows) -> dict[str, MethodResult]:
-    """Every method's :class:`MethodResult` (and its extra results right after it)."""
+    """Every method's :class:`MethodResult` (and its extra results right after it), its
+    in-sample figures on the rows it was fitted on (:attr:`MethodFit.rows`)."""
     results: dict[str, MethodResult] = {}
-    t_rows = rows.rows.cond.t[rows.rows.cond.mask]
     for method in methods:
         fit = method.fit(rows)
-        results[method.name] = _result(method.name, fit, rows.A, rows.y, t_rows)
+        own = fit.rows if fit.rows is not None else rows.rows
+        t_rows = own.cond.t[own.cond.mask]
+        results[method.name] = _result(method.name, fit, own.A, own.y, t_rows)
+        results[method.name].fitted_on = fit.rows
         for name, extra in fit.extra.items():
-            results[name] = _result(name, extra, rows.A, rows.y, t_rows)
+            results[name] = _result(name, extra, own.A, own.y, t_rows)
     return results
+
+
+def _not_converged(results, ls) -> list[str]:
+    """:func:`mark_not_converged`; a method fitted on rows of its own (IV and DIDIM in the
+    acceleration form beside momentum-form rows) is judged against LS on those rows."""
+    own = {m: r for m, r in results.items() if r.fitted_on is None}
+    out = mark_not_converged(own, ls)
+    for m, r in results.items():
+        if r.fitted_on is not None:
+            A, y = r.fitted_on.A, r.fitted_on.y
+            ref = LeastSquares().fit(A, y)
+            t = r.fitted_on.cond.t[r.fitted_on.cond.mask]
+            out += mark_not_converged({"ls": _result("ls", MethodFit.of(ref), A, y, t), m: r}, ref)
+    return out
+
+
+def closed_loop_rows(rows: FitRows):
+    """The rows IV and DIDIM fit: they condition their simulated closed loop like the
+    measured run, row for row, in the acceleration form (the momentum form's per-joint cuts
+    follow the measured run's stops; lining a simulated run up with them is not wired yet).
+    ``rows.rows`` when already in that form; else the runs conditioned again in it, once per
+    call of :func:`identify` (kept on ``rows.rows``)."""
+    if rows.rows.options.equation == "acceleration":
+        return rows.rows
+    cached = getattr(rows.rows, "acceleration_rows", None)
+    if cached is None:
+        options = rows.options.conditioning or ConditioningOptions()
+        options = replace(options, equation="acceleration", order=None)
+        cached = stacked_rows(
+            [_signals(r, rows.runs) for r in rows.runs], rows.description, options,
+            in_current_units=rows.options.in_current_units,
+            effort_is_torque=rows.effort_is_torque,
+            highest_harmonic_hz=rows.runs[0].highest_harmonic_hz,
+        )  # fmt: skip
+        rows.rows.acceleration_rows = cached
+    return cached
 
 
 def _result_of(rows: FitRows, results, options, torque) -> Identification:
@@ -280,7 +320,7 @@ def _result_of(rows: FitRows, results, options, torque) -> Identification:
     ]
     notes = [n for r in results.values() for n in r.notes]
     warnings += rows.rows.warnings + _moving_with_cutoff(rows.rows.choice, names, ls) + notes
-    warnings += mark_not_converged(results, ls)
+    warnings += _not_converged(results, ls)
     warnings += impossible_values(rows.model, rows.free, names, ls, cond, options.in_current_units)
     motors = []
     electrical = all(r.voltage is not None and r.ticks is not None for r in runs)
