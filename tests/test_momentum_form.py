@@ -193,12 +193,13 @@ def test_measured_run_within_a_few_std(plant_run):
     """The same run as the encoder and the ADC report it (quantised, no noise), identified
     with identify's defaults: the momentum form is chosen, and WLS's truth lies within 3 of
     its std for every parameter."""
-    from guardid.identify.pipeline import identify
+    from guardid.identify.pipeline import IdentifyOptions, identify, run_from_arrays
 
     t, _, _, _, q_meas, i_meas = plant_run
     desc = load_robot("guard")
     model = build_model(desc)
-    res = identify(t, q_meas, i_meas, desc, methods=("wls",), highest_harmonic_hz=0.83)
+    run = run_from_arrays(t, q_meas, i_meas, highest_harmonic_hz=0.83)
+    res = identify([run], desc, IdentifyOptions(methods=("wls",)))
     assert res.conditioning.equation == "momentum"
     w = res.results["wls"]
     truth = dict(zip(model.base.names, model.base.values(model.params), strict=True))

@@ -280,15 +280,16 @@ class _ClosedLoop(Method):
         from guardid.closedloop import fit_closed_loop
         from guardid.identify.pipeline import closed_loop_rows
 
+        first = getattr(rows.rows, "acceleration_rows", None) is None
         own = closed_loop_rows(rows)  # the acceleration form (module docstring there)
         runs = [(r.t, r.q, r.current) for r in rows.runs]
         per_run = [[getattr(r, k) for r in rows.runs] for k in ("ticks", "setpoint", "voltage")]
         flags = (rows.options.in_current_units, rows.effort_is_torque)
         est, notes = fit_closed_loop(self.name, own.A, own.y, own, (runs, *per_run),
                                      rows.description, rows.model, rows.free, flags)  # fmt: skip
-        if own is not rows.rows:
-            notes = [f"{self.name}: fitted in the acceleration form (its simulated closed loop "
-                     "is conditioned like the measured run in that form); the other methods: "
+        if own is not rows.rows and first:  # said once for iv and didim
+            notes = ["iv/didim: fitted in the acceleration form (their simulated closed loop is "
+                     "conditioned like the measured run in that form); the other methods: "
                      "momentum form", *notes]  # fmt: skip
         settings = {"stopped": est.stopped} if getattr(est, "stopped", "") else {}
         return MethodFit.of(est, converged=bool(est.converged), notes=notes, settings=settings,
