@@ -107,3 +107,43 @@ def identify_motor(
         rows=len(k),
         residual_rms_v=float(np.sqrt(np.mean(r**2))),
     )
+
+
+KE_TOLERANCE = 0.25
+"""Relative difference [-] between an identified Ke and the description's beyond which
+:func:`motor_doubts` warns: a datasheet's motor constant holds to about +-10 %, and the
+rigid-body parameters rest on the description's Kt (joint torque = N eta Kt i), so an
+identified Ke a quarter off means the effort's scale, or the columns, are not the robot's."""
+R_FACTOR = 2.0
+"""Factor [-] between an identified R and the description's beyond which
+:func:`motor_doubts` warns: copper's resistance rises 0.39 %/K, so even a motor 100 K warmer
+than the datasheet's 20 degC stays within 1.4x; a factor of 2 is no temperature change."""
+DOUBT_STD = 5.0
+"""...and only when the difference is also beyond this many of the estimate's std [-]."""
+
+
+def motor_doubts(description, motors) -> list[str]:
+    """Warnings for identified motors whose Ke or R disagree with the robot description's
+    (:data:`KE_TOLERANCE`, :data:`R_FACTOR`, :data:`DOUBT_STD`): the voltage, current or
+    angle columns of that joint may not belong together (swapped, another robot's log), or
+    the description's motor is not the one fitted."""
+    drives = {j.name: j.drive for j in description.joints if j.drive is not None}
+    out = []
+    for m in motors:
+        d = drives.get(m.joint)
+        if d is None or not (np.isfinite(m.ke) and np.isfinite(m.resistance)):
+            continue
+        ke_off = abs(m.ke - d.ke) > max(KE_TOLERANCE * d.ke, DOUBT_STD * m.ke_std)
+        ratio = m.resistance / d.resistance if d.resistance > 0 else np.inf
+        r_off = (ratio > R_FACTOR or ratio < 1.0 / R_FACTOR) and abs(
+            m.resistance - d.resistance
+        ) > DOUBT_STD * m.resistance_std
+        if ke_off or r_off:
+            out.append(
+                f"motor {m.joint}: identified R {m.resistance:.3g} ohm, Ke {m.ke:.3g} V s/rad "
+                f"against the description's {d.resistance:.3g} ohm, {d.ke:.3g} V s/rad: this "
+                "joint's voltage, current and angle columns may not belong together (swapped "
+                "columns, another robot's log?) or its motor is not the description's; the "
+                "rigid-body parameters rest on the description's Kt"
+            )
+    return out

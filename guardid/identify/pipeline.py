@@ -22,7 +22,7 @@ from guardid.conditioning.options import ConditioningOptions
 from guardid.dynamics import build_model
 from guardid.errors import GuardidError
 from guardid.estimators import LeastSquares, d_tau
-from guardid.identify.electrical import MotorEstimate, identify_motor
+from guardid.identify.electrical import MotorEstimate, identify_motor, motor_doubts
 from guardid.identify.methods import FitRows, MethodFit, methods_for
 from guardid.identify.rows import (  # noqa: F401  (re-exported)
     STICTION_GUARD_PERIODS,
@@ -326,6 +326,7 @@ def _result_of(rows: FitRows, results, options, torque) -> Identification:
     electrical = all(r.voltage is not None and r.ticks is not None for r in runs)
     if electrical and not (options.in_current_units or torque):
         motors = _motors(rows.description, runs)
+        warnings += motor_doubts(rows.description, motors)
     return Identification(
         names=names,
         formulas=tuple(rows.model.base.formulas[i] for i in rows.free),

@@ -1,0 +1,66 @@
+"""Identified motors against the robot description: a current swapped between joints under
+unchanged names cannot be checked against the counts, but the motor equation v = R i + Ke w
+then gives an R and a Ke far from the description's, and identify says so."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from badinput_tools import invoke
+from logedit import swapped
+
+from guardid.identify.electrical import MotorEstimate, motor_doubts
+from guardid.robot import load_robot
+
+GUARD = load_robot("guard")
+PAN = next(j for j in GUARD.joints if j.name == "pan").drive  # R 8 ohm, Ke 0.02 V s/rad
+
+
+def _motor(r_ohm, ke, r_std=0.01, ke_std=1e-5):
+    return MotorEstimate("pan", r_ohm, ke, None, r_std, ke_std, 1000, 0.05)
+
+
+def test_description_values_are_what_the_thresholds_are_worked_out_from():
+    assert PAN.resistance == 8.0 and PAN.ke == 0.02  # guard.yaml, by hand
+
+
+@pytest.mark.parametrize(
+    ("r_ohm", "ke", "r_std", "ke_std", "doubt"),
+    [
+        (8.0, 0.02, 0.01, 1e-5, False),  # the description's own values
+        (11.0, 0.022, 0.01, 1e-5, False),  # R 1.375x (a warm motor), Ke +10 % (datasheet)
+        (8.0, 0.026, 0.01, 1e-5, True),  # Ke +30 %, 600 std
+        (8.0, 0.014, 0.01, 1e-5, True),  # Ke -30 %
+        (8.0, 0.026, 0.01, 0.002, False),  # Ke +30 % but only 3 of its std: undetermined
+        (17.0, 0.02, 0.01, 1e-5, True),  # R 2.1x
+        (3.9, 0.02, 0.01, 1e-5, True),  # R / 2.05
+        (17.0, 0.02, 3.0, 1e-5, False),  # R 2.1x but 3 std
+        (math.nan, math.nan, math.nan, math.nan, False),  # not determined: trust_problems' case
+    ],
+)
+def test_motor_doubt_thresholds(r_ohm, ke, r_std, ke_std, doubt):
+    out = motor_doubts(GUARD, [_motor(r_ohm, ke, r_std, ke_std)])
+    assert (len(out) == 1) is doubt, out
+    if doubt:
+        assert out[0].startswith("motor pan: ") and "8 ohm" in out[0] and "0.02 V s/rad" in out[0]
+
+
+def test_a_joint_without_a_drive_is_not_checked():
+    m = MotorEstimate("elbow", 0.1, 1.0, None, 0.01, 1e-5, 100, 0.05)
+    assert motor_doubts(GUARD, [m]) == []
+
+
+def test_currents_swapped_under_their_names_are_named_by_identify(gap_guard_captures, tmp_path):
+    """The intact capture: no motor warning; the same file with i_pan_A and i_tilt_A's values
+    exchanged (names kept): a warning for each motor, exit 0 (the columns read fine)."""
+    log = gap_guard_captures[1]
+    intact = invoke("identify", log, "--method", "wls")
+    assert intact.exit_code == 0, intact.output
+    assert "warning: motor " not in intact.stderr
+    bad = tmp_path / "swapped.csv"
+    bad.write_text(swapped(log.read_text(), "i_pan_A", "i_tilt_A", names_too=False))
+    res = invoke("identify", bad, "--method", "wls")
+    assert res.exit_code == 0, res.output
+    lines = [x for x in res.stderr.splitlines() if x.startswith("warning: motor ")]
+    assert {x.split(":")[1].split()[1] for x in lines} == {"pan", "tilt"}, res.stderr
