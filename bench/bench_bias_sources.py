@@ -14,11 +14,14 @@ measured log and reused) on four versions of the log:
 
 Prints, per base parameter, the mean over seeds of (estimate - truth) / (the measured log's
 reported std), and in brackets the rms over seeds. The truth is the simulator's robot YAML;
-the statistics are a few lines of numpy here, not guardid's.
+the statistics are a few lines of numpy here, not guardid's. Each equation form of
+``--equations`` (``momentum``: the filtered momentum form, identify's default for guardid
+logs; ``acceleration``: the low-pass, twice-differentiated form) gets its own table, its
+conditioning resolved on the measured log; the captures are shared.
 
     python bench/bench_bias_sources.py [--seeds 6] [--duration 60] [--method ls]
                                        [--excitations default,tracking] [--fixed-phase]
-                                       [--cutoff HZ]
+                                       [--cutoff HZ] [--equations momentum,acceleration]
 """
 
 from __future__ import annotations
@@ -37,7 +40,11 @@ from guardid.identify.pipeline import identify
 from guardid.identify.runs import load_run
 from guardid.robot import load_robot
 
-EXCITATIONS = {"default": [], "tracking": ["--base-freq", "0.2", "--harmonics", "3"]}
+EXCITATIONS = {
+    "default": [],
+    "tracking": ["--base-freq", "0.2", "--harmonics", "3"],
+    "schroeder": ["--kind", "schroeder"],
+}
 _TRUTH: list = []
 _STEP = plant_module.Plant.step_sensors
 
@@ -84,6 +91,8 @@ def main() -> None:
         "--cutoff", type=float, default=None,
         help="low-pass cut-off [Hz] (default: chosen from the measured log)",
     )  # fmt: skip
+    ap.add_argument("--equations", default="momentum,acceleration",
+                    help="equation forms to compare (comma-separated)")  # fmt: skip
     ap.add_argument(
         "--fixed-phase",
         action="store_true",
@@ -92,7 +101,6 @@ def main() -> None:
     a = ap.parse_args()
     desc = load_robot("guard")
     model = build_model(desc)
-    given = ConditioningOptions(cutoff_hz=a.cutoff) if a.cutoff else None
     truth = dict(zip(model.base.names, model.base.values(model.params), strict=True))
     m = a.method
     with tempfile.TemporaryDirectory() as tmp:
@@ -100,31 +108,36 @@ def main() -> None:
         for exc in a.excitations.split(","):
             traj = work / f"traj_{exc}.yaml"
             _cli("excite", "--robot", "guard", "-o", str(traj), *EXCITATIONS[exc])
-            z: dict[str, list] = {}
+            equations = a.equations.split(",")
+            z: dict[str, dict[str, list]] = {eq: {} for eq in equations}
             for seed in range(a.seeds):
                 run, q_true, i_true = capture_with_truth(traj, seed, a.duration,
                                                          work / f"{exc}_{seed}.csv",
                                                          not a.fixed_phase)  # fmt: skip
                 hh = run.highest_harmonic_hz
-                ref = identify(run.t, run.q, run.current, desc, methods=(m,),
-                               highest_harmonic_hz=hh, conditioning=given)  # fmt: skip
-                tv = np.array([truth[n] for n in ref.names])
-                std = ref.results[m].std
-                for name, q, i in (("measured", run.q, run.current), ("true q", q_true,
-                                   run.current), ("true i", run.q, i_true),
-                                   ("both", q_true, i_true)):  # fmt: skip
-                    r = ref if name == "measured" else identify(
-                        run.t, q, i, desc, methods=(m,), conditioning=ref.conditioning,
-                        highest_harmonic_hz=hh)  # fmt: skip
-                    z.setdefault(name, []).append((r.results[m].theta - tv) / std)
+                for eq in equations:
+                    given = ConditioningOptions(cutoff_hz=a.cutoff, equation=eq)
+                    ref = identify(run.t, run.q, run.current, desc, methods=(m,),
+                                   highest_harmonic_hz=hh, conditioning=given)  # fmt: skip
+                    tv = np.array([truth[n] for n in ref.names])
+                    std = ref.results[m].std
+                    for name, q, i in (("measured", run.q, run.current), ("true q", q_true,
+                                       run.current), ("true i", run.q, i_true),
+                                       ("both", q_true, i_true)):  # fmt: skip
+                        r = ref if name == "measured" else identify(
+                            run.t, q, i, desc, methods=(m,), conditioning=ref.conditioning,
+                            highest_harmonic_hz=hh)  # fmt: skip
+                        z[eq].setdefault(name, []).append((r.results[m].theta - tv) / std)
                 print(f"  {exc} seed {seed} done", flush=True)
-            print(f"\n{exc} excitation, {m.upper()}, {a.seeds} seeds: mean (rms) over seeds of"
-                  " (estimate - truth) / the measured log's std")  # fmt: skip
-            print(f"{'param':7s}" + "".join(f"{k:>16s}" for k in z))
-            for k, n in enumerate(ref.names):
-                cols = [np.array(v)[:, k] for v in z.values()]
-                cells = "".join(f"{c.mean():+9.2f} ({np.sqrt(np.mean(c**2)):4.2f})" for c in cols)
-                print(f"{n:7s}{cells}")
+            for eq in equations:
+                print(f"\n{exc} excitation, {eq} form, {m.upper()}, {a.seeds} seeds: mean (rms) "
+                      "over seeds of (estimate - truth) / the measured log's std")  # fmt: skip
+                print(f"{'param':7s}" + "".join(f"{k:>16s}" for k in z[eq]))
+                for k, n in enumerate(ref.names):
+                    cols = [np.array(v)[:, k] for v in z[eq].values()]
+                    cells = "".join(f"{c.mean():+9.2f} ({np.sqrt(np.mean(c**2)):4.2f})"
+                                    for c in cols)  # fmt: skip
+                    print(f"{n:7s}{cells}")
 
 
 if __name__ == "__main__":

@@ -134,8 +134,20 @@ _PARALLEL_HELP = (
     "off; 0 = off]."
 )
 _CUTOFF_HELP = (
-    "Low-pass cut-off on positions and efforts [Hz] [default: chosen from the data by "
+    "Cut-off [Hz] of the one filter on both sides of the momentum form [default: 2 x the "
+    "excitation's highest harmonic (else the positions' 99.5 % band), at least 2 Hz], or of "
+    "the low-pass "
+    "on positions and efforts of the acceleration form [default: chosen from the data by "
     "cross-validation, docs/VALIDATION.md]."
+)
+_EQUATION_HELP = (
+    "Model equation of the rows: momentum (per period, drive impulse = change of the "
+    "momentum M(q) qd + integral of the rest; nothing differentiated twice, one causal "
+    "filter on both sides, DESIGN.md 5b) or acceleration (tau = Y(q, qd, qdd) theta on "
+    "low-passed, twice-differentiated positions) [default: momentum for motor-current logs "
+    "on a tick grid, acceleration for measured torque, uneven time stamps and "
+    "--parallel-filter; iv and didim always fit the acceleration form's rows]. Recorded in "
+    "params.yaml (conditioning.equation)."
 )
 
 
@@ -169,6 +181,10 @@ def _arrays(runs):
     "and a robot with motors, encoders and pid:.",
 )
 @click.option("--cutoff", type=_POSITIVE, default=None, help=_CUTOFF_HELP)
+@click.option(
+    "--equation", type=click.Choice(["momentum", "acceleration"]), default=None,
+    help=_EQUATION_HELP,
+)  # fmt: skip
 @click.option("--beta", type=_POSITIVE, default=0.01, show_default=True, help="Hopfield gain beta.")
 @click.option(
     "--lam",
@@ -205,8 +221,8 @@ def _arrays(runs):
 )
 @_foreign_options
 def identify(
-    log, robot, method, cutoff, beta, lam, eta, current_units, output, plot_path, report_path,
-    parallel_hz, consistent, cv, force, **foreign,
+    log, robot, method, cutoff, equation, beta, lam, eta, current_units, output, plot_path,
+    report_path, parallel_hz, consistent, cv, force, **foreign,
 ):  # fmt: skip
     """Identify the robot's base parameters and motor constants from LOG [LOG ...].
 
@@ -230,7 +246,8 @@ def identify(
     if len({r.torque for r in runs}) > 1:
         raise ConfigError(f"{logs[-1]}: mixes measured torque and motor current with {log}")
     methods = tuple(m.strip() for m in method.split(",") if m.strip())
-    options = ConditioningOptions(cutoff_hz=cutoff, parallel_filter_hz=parallel_hz)
+    options = ConditioningOptions(cutoff_hz=cutoff, parallel_filter_hz=parallel_hz,
+                                  equation=equation)  # fmt: skip
     if cv:
         _cross_validate(logs, runs, description, methods, options, current_units, beta, lam, eta)
         return

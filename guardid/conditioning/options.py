@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields, replace
 
 from guardid.conditioning.filters import DEFAULT_ORDER
+from guardid.conditioning.momentum import EQUATIONS
 from guardid.errors import ConfigError
 
 
@@ -31,11 +32,20 @@ class ConditioningOptions:
     flat_is_stuck : flag samples without an encoder count in the period; None = guardid logs.
     parallel_filter_hz : Gautier's parallel filter on the regressor and the torque [Hz];
         None = off.
-    order : Butterworth order (applied forward and backward).
+    order : Butterworth order; None = by equation form: 4 for "acceleration" (applied forward
+        and backward), 2 for "momentum" (causal, one filter on both sides).
     edge_s : rows within this time of either end are dropped [s]; None = 1 / cut-off.
     friction_filter : low-pass the regressor's Coulomb (and Stribeck) columns with the same
         filter as the effort (parallel filtering of the friction jump); None = chosen with
         the cut-off by cross-validation (when the cut-off is given: off).
+    equation : the model equation the rows hold: "momentum" (the filtered momentum form,
+        :mod:`guardid.conditioning.momentum`: per period impulse = momentum change + integral
+        of the rest, nothing differentiated twice, one causal filter on both sides; the
+        cut-off is that filter's) or "acceleration" (tau = Y(q, qd, qdd) theta on low-passed,
+        twice-differentiated positions); None = momentum for motor-current logs on a uniform
+        tick grid (guardid logs), acceleration otherwise (measured torque, uneven time
+        stamps, a parallel or friction filter asked for, a model other than a serial chain).
+        A params file written before this field existed is read as "acceleration".
     """
 
     cutoff_hz: float | None = None
@@ -44,9 +54,15 @@ class ConditioningOptions:
     stiction_guard_s: float | None = None
     flat_is_stuck: bool | None = None
     parallel_filter_hz: float | None = None
-    order: int = DEFAULT_ORDER
+    order: int | None = None
     edge_s: float | None = None
     friction_filter: bool | None = None
+    equation: str | None = None
+
+    def __post_init__(self):
+        if self.equation is not None and self.equation not in EQUATIONS:
+            raise ConfigError(f"equation: expected one of {', '.join(EQUATIONS)}, got "
+                              f"{self.equation!r}")  # fmt: skip
 
     def with_(self, **changes) -> ConditioningOptions:
         """A copy with ``changes`` applied (None values in ``changes`` are ignored)."""
@@ -69,12 +85,18 @@ class ConditioningOptions:
         if not isinstance(data, dict):
             raise ConfigError(f"{where}: expected a mapping")
         known = {f.name: f for f in fields(cls)}
-        out = {}
+        out = {"equation": "acceleration", "order": DEFAULT_ORDER}  # files from before them
         for key, value in data.items():
             if key not in known:
                 raise ConfigError(f"{where}.{key}: unknown (known: {', '.join(known)})")
             if value is None:
                 out[key] = None
+                continue
+            if key == "equation":
+                if value not in EQUATIONS:
+                    raise ConfigError(f"{where}.{key}: expected one of {', '.join(EQUATIONS)}, "
+                                      f"got {value!r}")  # fmt: skip
+                out[key] = value
                 continue
             if key in ("flat_is_stuck", "friction_filter"):
                 if not isinstance(value, bool):

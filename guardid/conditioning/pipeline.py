@@ -38,6 +38,11 @@ class Conditioned:
     each choice was made. ``tau_raw`` (M, n) is the effort in tau's unit at the same instants
     before the low-pass (aligned and resampled only): the measured signal a model must predict.
     ``n_flagged`` counts the original samples flagged near zero velocity.
+    ``equation``: "acceleration" (these signals and the regressor Y(q, qd, qdd)) or
+    "momentum" (:mod:`guardid.conditioning.momentum`: ``tau`` is the filtered drive torque
+    of the period equations, ``joint_mask`` (M, n) which joint's equation each row holds,
+    ``momentum`` what the rows are made of; q and qd are the raw tick values, qdd their
+    difference, for plots and inputs).
     """
 
     t: np.ndarray
@@ -55,6 +60,9 @@ class Conditioned:
     tau_raw: np.ndarray | None = None
     n_flagged: int = 0
     dropped: dict = field(default_factory=dict)
+    joint_mask: np.ndarray | None = None
+    equation: str = "acceleration"
+    momentum: object | None = None
 
 
 def condition(

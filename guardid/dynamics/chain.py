@@ -106,6 +106,41 @@ class ChainModel:
         q, _, _ = _states(q, qd, qdd)
         return np.zeros_like(q)
 
+    # ------------------------------------------------------------------ momentum form
+    def momentum_regressor(self, q, v) -> np.ndarray:
+        """Y_p (N, n, p) with the generalised momentum M(q) v = Y_p @ params [N m s | N s]
+        (rigid bodies and rotors; no friction): Y(q, 0, v) - Y(q, 0, 0). Complex ``q`` is
+        accepted (the complex step of :meth:`rest_regressor`)."""
+        q = np.atleast_2d(q)
+        v = np.atleast_2d(np.asarray(v, dtype=float))
+        dtype = np.result_type(q.dtype, float)
+        zero = np.zeros(q.shape, dtype=float)
+        with_v = np.zeros((q.shape[0], self.n_dof, len(self.param_names)), dtype=dtype)
+        self._rigid(q, zero, v, with_v)
+        still = np.zeros_like(with_v)
+        self._rigid(q, zero, zero, still)
+        out = with_v - still
+        for j in range(self.n_dof):
+            if self._ia_index[j] is not None:
+                u = self._ia_vector[j]
+                out[:, :, self._ia_index[j]] += np.outer(v @ u, u)
+        return out
+
+    def rest_regressor(self, q, qd) -> np.ndarray:
+        """Y_r (N, n, p): tau = d/dt (Y_p(q, qd) params) + Y_r(q, qd) params, i.e. the
+        regressor of -C(q, qd)^T qd + g(q) + friction(qd) = Y(q, qd, 0) - (dM/dt) qd.
+        (dM/dt) qd = d/de Y_p(q + e qd, qd) at e = 0 is taken by the complex step (exact to
+        rounding: no difference is subtracted)."""
+        q, qd, _ = _states(q, qd, qd)
+        h = 1e-30
+        mdot = self.momentum_regressor(q + 1j * h * qd, qd).imag / h
+        return self.regressor(q, qd, np.zeros_like(qd)) - mdot
+
+    def friction_index(self, j: int) -> int | None:
+        """Index in ``param_names`` of joint j's first friction column (Fv; then Fc, Fo and
+        Fs with the Stribeck model), None without friction."""
+        return self._fric_index[j]
+
     # ------------------------------------------------------------------ dynamics
     def _p(self, params) -> np.ndarray:
         return self.params if params is None else np.asarray(params, dtype=float)

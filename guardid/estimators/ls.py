@@ -34,7 +34,9 @@ class LeastSquares(Estimator):
         Raug = qr(np.column_stack([Aw, yw]), mode="r", check_finite=False)[0]
         self.R_ = Raug[:p, :p]
         self.z_ = Raug[:p, p]
-        self.n_rows_ = Aw.shape[0]
+        # an all-zero row (a joint whose equation is cut there) carries no information and
+        # is no degree of freedom
+        self.n_rows_ = int(np.count_nonzero(np.any(Aw != 0, axis=1) | (yw != 0)))
         self._finish()
         self.rss_ = float(Raug[p, p] ** 2) if Raug.shape[0] > p else 0.0
         self._stats()
@@ -106,8 +108,9 @@ class LeastSquares(Estimator):
 class WeightedLeastSquares(LeastSquares):
     """Gautier's IDIM-WLS: each output (joint) row group weighted by 1 / sigma_j.
 
-    A first OLS pass gives per-output residual variances sigma_j^2 = ||r_j||^2 / (N - p_j),
-    p_j the number of parameters whose column is not identically zero in output j's rows.
+    A first OLS pass gives per-output residual variances sigma_j^2 = ||r_j||^2 / (N_j - p_j),
+    N_j output j's rows that are not all zero (a cut equation), p_j the number of parameters
+    whose column is not identically zero in output j's rows.
     The weighted system (rows of output j divided by sigma_j) is then solved by QR;
     ``std_`` comes from s^2 ((W A)^T W A)^-1 with s^2 = ||W r||^2 / (M - p) (about 1 when the
     noise model holds). ``sigma_per_output_`` (n_out,) holds sigma_j (unit of y), ``weights_``
@@ -127,7 +130,8 @@ class WeightedLeastSquares(LeastSquares):
         self._w = np.ones(n)
         super().fit(A3, y2)
         p_j = np.count_nonzero(np.any(A3 != 0, axis=0), axis=1)
-        dof = np.maximum(N - p_j, 1)
+        rows_j = np.count_nonzero(np.any(A3 != 0, axis=2) | (y2 != 0), axis=0)  # not all-zero
+        dof = np.maximum(rows_j - p_j, 1)
         for _ in range(max(self.n_iter, 1)):
             r = y2 - A3 @ self.theta_
             sig = np.sqrt(np.sum(r**2, axis=0) / dof)

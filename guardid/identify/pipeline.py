@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -222,6 +222,7 @@ def identify(
     results: dict[str, MethodResult] = {}
     closed_loop_notes: list[str] = []
     ls = LeastSquares().fit(A, y)
+    loop_rows = None  # iv / didim: the acceleration form's rows
     for method in methods:
         if method == "ls":
             est = ls
@@ -240,17 +241,24 @@ def identify(
         elif method in ("iv", "didim"):  # closed-loop consistent (guardid.closedloop)
             from guardid.closedloop import fit_closed_loop
 
-            est, note = fit_closed_loop(method, A, y, rows, loop_inputs, description, model,
-                                        free, (in_current_units, effort_is_torque))  # fmt: skip
+            if loop_rows is None:
+                loop_rows = closed_loop_rows(rows, runs, description, conditioning,
+                                             in_current_units, effort_is_torque,
+                                             highest_harmonic_hz, closed_loop_notes)  # fmt: skip
+            est, note = fit_closed_loop(method, loop_rows.A, loop_rows.y, loop_rows, loop_inputs,
+                                        description, model, free,
+                                        (in_current_units, effort_is_torque))  # fmt: skip
             closed_loop_notes += note
+            lc = loop_rows.cond
+            results[method] = _result(method, est, loop_rows.A, loop_rows.y, lc.t[lc.mask])
+            results[method].converged = bool(est.converged)  # report's "(not converged)"
+            continue
         elif method == "mlp":  # seed 001's network; inputs (q, q', q'') of the usable rows
             m = cond.mask
             est = MLP().fit(A, y, X=np.hstack([cond.q[m], cond.qd[m], cond.qdd[m]]))
         else:
             est = Gradient(eta=gradient_eta, dt=dt, theta0=nominal).fit(A, y)
         results[method] = _result(method, est, A, y, cond.t[cond.mask])
-        if method in ("iv", "didim"):  # the report's "(not converged)" and params' flag
-            results[method].converged = bool(est.converged)
         if method == "hopfield":
             results[method].settings = {
                 "beta": beta,
@@ -270,7 +278,7 @@ def identify(
         if r > POOR_REL_STD_PCT
     ]
     warnings += rows.warnings + _moving_with_cutoff(rows.choice, names, ls) + closed_loop_notes
-    warnings += mark_not_converged(results, ls)
+    warnings += _not_converged(results, ls, rows, loop_rows)
     warnings += impossible_values(model, free, names, ls, cond, in_current_units)
     motors = []
     if voltage_v is not None and ticks is not None and not (in_current_units or effort_is_torque):
@@ -297,6 +305,38 @@ def identify(
 MOVING_PCT = 10.0
 """Warn when a well-identified parameter moves more than this [%] between the chosen cut-off
 and a neighbouring candidate."""
+
+
+def _not_converged(results, ls, rows, loop_rows) -> list[str]:
+    """:func:`mark_not_converged`, IV and DIDIM against LS on their own rows when those are
+    not the other methods' (another equation form: other rows, another in-sample error)."""
+    loop = [m for m in results if m in ("iv", "didim")]
+    if loop_rows is None or loop_rows is rows or not loop or "ls" not in results:
+        return mark_not_converged(results, ls)
+    lc = loop_rows.cond
+    ref = _result("ls", LeastSquares().fit(loop_rows.A, loop_rows.y), loop_rows.A, loop_rows.y,
+                  lc.t[lc.mask])  # fmt: skip
+    out = mark_not_converged({m: r for m, r in results.items() if m not in loop}, ls)
+    return out + mark_not_converged({"ls": ref, **{m: results[m] for m in loop}}, ls)
+
+
+def closed_loop_rows(rows, runs, description, options, in_current_units, effort_is_torque,
+                     highest_harmonic_hz, notes):  # fmt: skip
+    """The rows IV and DIDIM fit: they condition their simulated closed loop like the
+    measured run, row for row, in the acceleration form (the momentum form's per-joint cuts
+    follow the measured run's stops: ``rows.momentum_rows_of`` would line a simulated run up
+    with them, not wired yet). ``rows`` when already in that form; else the runs conditioned
+    again in it (a note in ``notes``)."""
+    if rows.options.equation == "acceleration":
+        return rows
+    notes.append(
+        "iv/didim: acceleration form (their simulated closed loop is conditioned like the "
+        "measured run in that form); the other methods: momentum form"
+    )
+    options = replace(options or ConditioningOptions(), equation="acceleration", order=None)
+    return stacked_rows(runs, description, options, in_current_units=in_current_units,
+                        effort_is_torque=effort_is_torque,
+                        highest_harmonic_hz=highest_harmonic_hz)  # fmt: skip
 
 
 def _moving_with_cutoff(choice, names, ls) -> list[str]:

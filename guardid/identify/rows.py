@@ -12,11 +12,17 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from guardid.conditioning import condition
-from guardid.conditioning.filters import DEFAULT_ORDER, decimation_factor, zero_phase_lowpass
+from guardid.conditioning import momentum as mom
+from guardid.conditioning.filters import (
+    DEFAULT_ORDER,
+    decimation_factor,
+    is_uniform,
+    zero_phase_lowpass,
+)
 from guardid.conditioning.options import ConditioningOptions
 from guardid.conditioning.parallel import parallel_filter
 from guardid.conditioning.stiction import guard_periods
-from guardid.dynamics import build_model
+from guardid.dynamics import ChainModel, build_model
 from guardid.errors import GuardidError
 from guardid.identify.cutoff import (
     MIN_BLOCKS,
@@ -24,6 +30,7 @@ from guardid.identify.cutoff import (
     ParallelChoice,
     choose_cutoff_cv,
     choose_parallel_filter,
+    motion_bandwidth,
 )
 
 STICTION_GUARD_SHARE = 0.95
@@ -62,7 +69,9 @@ class Rows:
     ``cond``: the runs' conditioned signals joined; ``A`` (M, n, b') base regressor of the
     identified columns; ``y`` (M, n) effort minus the known torque [N m | N | effort unit];
     ``options``: the options used, cut-off resolved; ``choice``: the cut-off's
-    cross-validation (None when given); ``warnings``: doubts about the conditioning.
+    cross-validation (None when given); ``warnings``: doubts about the conditioning;
+    ``runs``: per run its own conditioned signals (the momentum form: what
+    :func:`momentum_rows_of` needs).
     """
 
     cond: object
@@ -71,6 +80,7 @@ class Rows:
     options: ConditioningOptions
     choice: CutoffChoice | None = None
     warnings: list[str] = field(default_factory=list)
+    runs: list = field(default_factory=list)
 
     def __iter__(self):  # (cond, A, y), as before
         return iter((self.cond, self.A, self.y))
@@ -433,6 +443,10 @@ def stacked_rows(
     runs = list(runs)
     model = build_model(description)
     free = free_columns(model, description)
+    options, why = resolve_equation(options, runs, model, effort_is_torque)
+    if options.equation == "momentum":
+        return _momentum_rows(runs, description, options, model, free, in_current_units,
+                              effort_is_torque, highest_harmonic_hz)  # fmt: skip
     choice = None
     cutoff = options.cutoff_hz
     if cutoff is None:
@@ -465,12 +479,7 @@ def stacked_rows(
         conds.append(c)
         As.append(A)
         ys.append(y)
-    A, y = np.concatenate(As), np.concatenate(ys)
-    if len(A) <= len(free):
-        raise GuardidError(
-            f"only {len(A)} usable rows after conditioning (need more than {len(free)}): "
-            "the run is too short or the joints hardly move"
-        )
+    A, y = _stacked(As, ys, free)
     joined = _join(conds)
     if choice is not None:
         joined.notes.insert(0, f"cut-off {cutoff:g} Hz: {choice.reason}")
@@ -478,7 +487,122 @@ def stacked_rows(
             joined.notes.insert(1, parallel.reason)
     else:
         joined.notes.insert(0, f"cut-off {cutoff:g} Hz set by the caller")
+    joined.notes.insert(1, f"equation: acceleration form ({why})")
     return Rows(joined, A, y, used, choice, _doubts(conds, choice))
+
+
+def _stacked(As, ys, free):
+    """The runs' rows stacked; one-line error when too few for the parameters."""
+    A, y = np.concatenate(As), np.concatenate(ys)
+    if len(A) <= len(free):
+        raise GuardidError(
+            f"only {len(A)} usable rows after conditioning (need more than {len(free)}): "
+            "the run is too short or the joints hardly move"
+        )
+    return A, y
+
+
+def momentum_unsuitable(runs, model, effort_is_torque, options) -> str:
+    """Why the momentum form is not the automatic choice for these runs ('' when it is)."""
+    if not isinstance(model, ChainModel):
+        return "not a serial chain"
+    if effort_is_torque:
+        return "measured torque samples: the momentum form needs period means of the current"
+    if options.parallel_filter_hz or options.friction_filter:
+        return "a parallel or friction filter was asked for"
+    for run in runs:
+        t = np.asarray(run[0], dtype=float)
+        steps = np.diff(t)
+        ticks = steps / np.median(steps)
+        if not is_uniform(t) and np.any(np.abs(ticks - np.round(ticks)) > 1e-6):
+            return "uneven time stamps"
+    return ""
+
+
+def resolve_equation(options, runs, model, effort_is_torque):
+    """(options with the equation form and the filter order resolved, why that form)."""
+    eq = options.equation
+    why = momentum_unsuitable(runs, model, effort_is_torque, options) if eq is None else ""
+    if eq is None:
+        eq = "acceleration" if why else "momentum"
+        why = why or "the default for motor-current logs on a tick grid"
+    else:
+        why = "asked for"
+        if eq == "momentum" and not isinstance(model, ChainModel):
+            raise GuardidError("equation momentum: only for serial chains (give acceleration)")
+        if eq == "momentum" and (options.parallel_filter_hz or options.friction_filter):
+            raise GuardidError("equation momentum: no parallel or friction filter (its one "
+                               "filter is on both sides already)")  # fmt: skip
+    order = options.order
+    if order is None:
+        order = mom.DEFAULT_ORDER if eq == "momentum" else DEFAULT_ORDER
+    return replace(options, equation=eq, order=int(order)), why
+
+
+def _momentum_rows(runs, description, options, model, free, in_current_units, effort_is_torque,
+                   highest_harmonic_hz) -> Rows:  # fmt: skip
+    """:func:`stacked_rows` in the momentum form (:mod:`guardid.conditioning.momentum`)."""
+    t0 = np.asarray(runs[0][0], dtype=float)
+    fs = 1.0 / float(np.median(np.diff(t0)))
+    cutoff = options.cutoff_hz
+    if cutoff is None:
+        band = motion_bandwidth(runs, highest_harmonic_hz)
+        cutoff = mom.momentum_cutoff(fs, band, bool(highest_harmonic_hz))
+        src = "the excitation's highest harmonic" if highest_harmonic_hz else "the positions' "
+        src += "" if highest_harmonic_hz else "99.5 % energy bandwidth"
+        factor = mom.HARMONIC_FACTOR if highest_harmonic_hz else mom.SPECTRUM_FACTOR
+        reason = (f"cut-off {cutoff:g} Hz of the momentum form's filter: {factor:g} x {src} "
+                  f"({band:.3g} Hz), at least {mom.MIN_CUTOFF_HZ:g} Hz")  # fmt: skip
+    else:
+        reason = f"cut-off {cutoff:g} Hz of the momentum form's filter, set by the caller"
+    used = replace(options, cutoff_hz=float(cutoff), friction_filter=False)
+    gain = _gain(description, in_current_units, effort_is_torque)
+    limits = position_limits(description)
+    thr = options.stiction_threshold
+    if thr is None:  # smooth friction holds through zero velocity
+        thr = np.where(_smooth_joints(description), 0.0, np.nan)
+    flat = (not effort_is_torque) if options.flat_is_stuck is None else options.flat_is_stuck
+    fixed = [i for i in range(len(model.base.names)) if i not in free]
+    base = model.base.values(model.params)
+    conds, As, ys = [], [], []
+    for run in runs:
+        t, q, effort, *rest = run
+        cond, A_all, y = mom.condition_momentum(
+            t, q, effort, model, gain=gain, cutoff_hz=cutoff, order=used.order,
+            decimate=options.decimate, effort_is_torque=effort_is_torque, stiction_threshold=thr,
+            flat_is_stuck=flat, position_limits=limits, velocity=rest[0] if rest else None,
+        )  # fmt: skip
+        if fixed and not in_current_units:
+            y = y - A_all[:, :, fixed] @ base[fixed]
+        m = cond.mask
+        conds.append(cond)
+        As.append(A_all[m][:, :, free])
+        ys.append(y[m])
+    A, y = _stacked(As, ys, free)
+    joined = _join(conds)
+    joined.notes.insert(0, reason)
+    choice = CutoffChoice(float(cutoff), reason.split(": ", 1)[-1], [float(cutoff)])
+    return Rows(joined, A, y, used, choice if options.cutoff_hz is None else None,
+                _doubts(conds, None), conds)  # fmt: skip
+
+
+def momentum_rows_of(rows: Rows, run: int, q, model, free) -> np.ndarray:
+    """(M_run, n, b') run ``run``'s usable rows of the momentum form recomputed from other
+    positions ``q`` (N, n) on the same ticks (e.g. its closed loop simulated, for
+    instruments): the measured run's cuts, filter and kept rows, velocities from ``q``."""
+    cond = rows.runs[run]
+    A_all = mom.rows_like(cond.momentum, model, np.asarray(q, dtype=float))
+    return A_all[cond.mask][:, :, free]
+
+
+def predicted_effort(cond, model, theta) -> np.ndarray:
+    """(M, n) the effort that ``model`` with base parameters ``theta`` (b,) predicts on the
+    usable rows of ``cond`` (either equation form; zero on a joint's cut rows)."""
+    m = cond.mask
+    if getattr(cond, "equation", "acceleration") == "momentum":
+        return mom.regressor_rows(cond.momentum, model)[m] @ theta
+    q, qd, qdd = cond.q[m], cond.qd[m], cond.qdd[m]
+    return model.base_regressor(q, qd, qdd) @ theta + model.known_torque(q, qd, qdd)
 
 
 def _auto_parallel(runs, description, used, in_current_units, effort_is_torque, model, free):
@@ -569,12 +693,15 @@ def _join(conds):
     raw = None
     if all(c.tau_raw is not None for c in conds):
         raw = np.concatenate([c.tau_raw for c in conds])
+    jm = None
+    if all(c.joint_mask is not None for c in conds):
+        jm = np.concatenate([c.joint_mask for c in conds])
     return replace(
         conds[0],
         t=np.concatenate(ts),
         **{f: np.concatenate([getattr(c, f) for c in conds])
            for f in ("q", "qd", "qdd", "tau", "mask", "stiction")},
-        tau_raw=raw, dropped=dropped, notes=notes,
+        tau_raw=raw, dropped=dropped, notes=notes, joint_mask=jm, momentum=None,
     )  # fmt: skip
 
 
@@ -585,6 +712,12 @@ def rows_summary(cond) -> str:
     why = ", ".join(f"{v} {k}" for k, v in cond.dropped.items() if v)
     dec = f" (after decimation by {cond.decimation})" if cond.decimation > 1 else ""
     parallel = [note for note in cond.notes if note.startswith("parallel filter")]
+    jm = getattr(cond, "joint_mask", None)
+    if jm is not None:  # the momentum form: a joint's rows are cut on their own
+        zeroed = int((~jm[cond.mask]).sum())
+        return (f"rows: {used} of {n} conditioned samples{dec} used, {zeroed} joint rows of "
+                f"them zeroed (that joint's equation cut)"
+                + (f"; joint rows cut: {why}" if why else ""))  # fmt: skip
     return (
         f"rows: {used} of {n} conditioned samples{dec} used"
         + (f"; dropped {why}" if why else "")

@@ -161,20 +161,25 @@ def score_sets(rows_per_run, sets, run_names, current_units=False, preds=None) -
     one conditioning; the usable rows (``mask``) are scored. ``preds`` (a dict, optional)
     receives (run name, set label) -> the predicted effort of the scored rows (M, n).
     """
+    from guardid.identify.rows import predicted_effort
+
     out = []
     for cond, name in zip(rows_per_run, run_names, strict=True):
         m = cond.mask
-        q, qd, qdd, tau = cond.q[m], cond.qd[m], cond.qdd[m], cond.tau[m]
-        rms_tau = np.sqrt(np.mean(tau**2, axis=0))
+        tau = cond.tau[m]
+        # rows per joint (the momentum form zeroes a joint's cut rows)
+        jm = getattr(cond, "joint_mask", None)
+        n_j = np.maximum(jm[m].sum(0) if jm is not None else np.full(tau.shape[1], len(tau)), 1)
+        rms_tau = np.sqrt(np.sum(tau**2, axis=0) / n_j)
         passive = rms_tau < PASSIVE_FRACTION * rms_tau.max()
         for s in sets:
             model = build_model(s.description)
             theta = np.array([s.values[n] for n in model.base.names])
-            pred = model.base_regressor(q, qd, qdd) @ theta + model.known_torque(q, qd, qdd)
+            pred = predicted_effort(cond, model, theta)
             if preds is not None:
                 preds[(name, s.label)] = pred
             r = tau - pred
-            rms = np.sqrt(np.mean(r**2, axis=0))
+            rms = np.sqrt(np.sum(r**2, axis=0) / n_j)
             rel = np.where(passive, np.nan, rms / np.where(rms_tau > 0, rms_tau, 1.0))
             stacked = float(np.sqrt(np.mean(r**2)) / np.sqrt(np.mean(tau**2)))
             out.append(Score(s.label, name, stacked, rms, rel, passive, int(m.sum()),
@@ -250,7 +255,9 @@ def stored_conditioning(path, data) -> ConditioningOptions:
     if "conditioning" in data:
         return ConditioningOptions.from_dict(data["conditioning"], f"{path}: conditioning")
     return ConditioningOptions(
-        cutoff_hz=data.get("cutoff_hz"), parallel_filter_hz=data.get("parallel_filter_hz")
+        cutoff_hz=data.get("cutoff_hz"),
+        parallel_filter_hz=data.get("parallel_filter_hz"),
+        equation="acceleration",
     )
 
 

@@ -1,0 +1,521 @@
+"""The filtered momentum form of the model: one equation per period, nothing differentiated
+twice, one linear filter on both sides (DESIGN.md section 5b).
+
+With p = M(q) q' = Y_p(q, q') theta the generalised momentum and Y_r(q, q') theta =
+-C(q, q')^T q' + g(q) + friction(q') the rest (:meth:`ChainModel.momentum_regressor`,
+:meth:`ChainModel.rest_regressor`), the drive torque integrated over the period k, from tick
+k-1 to tick k, is
+
+    impulse_k = Y_p(q_k, q'_k) theta - Y_p(q_(k-1), q'_(k-1)) theta + integral of Y_r theta dt
+
+A guardid log's current at tick k is the mean over (t_(k-1), t_k] (the firmware's
+oversampling ADC; :mod:`guardid.firmware.emulator`, :meth:`guardid.plant.plant.Plant._measure`),
+so the impulse is gain x i_k x T exactly. The integral: viscous friction is
+Fv (q_k - q_(k-1)) exactly, sign-model Coulomb friction Fc T sign(q_k - q_(k-1)) (the joint
+moves the same way through the period: periods near a stop or reversal are cut), the offset
+Fo T, the rest (gravity, Coriolis, smooth friction shapes) by the four-point rule
+T/24 (-f_(k-2) + 13 f_(k-1) + 13 f_k - f_(k+1)) (fourth order). Velocities at the ticks
+come from the raw positions by a central difference (three points); nothing is low-passed
+before the regressor. Logs of instantaneous torque samples: the impulse is the same
+four-point rule applied to the torque.
+
+The stencil's own error, for a guardid log's voltage-driven motors: the voltage held over
+each period makes the net torque, and so the acceleration, step at every tick, and the
+three-point difference then errs by T (a_after - a_before) / 4 instead of O(T^2)
+(:func:`kink_weights`); within a period the back-EMF makes the current fall as the joint
+speeds up, a slope -(D + Fv) a of the net torque (D = N eta Kt N Ke / R, the drive's
+electrical damping from the robot description; :func:`slope_weights`). Both momentum
+errors are linear: the drive's part moves to the impulse side (:func:`kink_correction`,
+:func:`slope_term`), the rest's to the regressor (its period integrals, the Fv column).
+On the plant's true positions and currents this takes the bias left by the stencil from
+about 0.1 to below 0.01 of the measured std (``bench/bench_bias_sources.py``).
+
+Then one causal Butterworth low-pass (order :data:`DEFAULT_ORDER`, cut-off chosen by
+:func:`momentum_cutoff`) runs over the impulses and over every column alike: a linear
+operator applied to both sides keeps the equation exactly. It removes the differenced
+velocity quantisation from the momentum columns (and the current noise). The filter runs
+per joint over stretches where that joint's equation holds; where it does not (a stuck,
+slow or reversing joint, a hard stop, a missing tick) the stretch ends, and the next starts
+with the filter at rest; the first :func:`transient_samples` outputs after each start are
+dropped (there the first momentum's velocity error weighs as much as all the others).
+Rows are kept every ``decimate`` periods (about 1 / (2 fc) apart), divided by T (torque
+units); a joint whose filtered equation is not valid at a kept instant has a zero row there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.signal import butter, sosfilt
+
+from guardid.conditioning.stiction import at_position_limit, default_stiction_threshold
+from guardid.errors import GuardidError
+
+EQUATIONS = ("momentum", "acceleration")
+DEFAULT_ORDER = 2
+"""Order of the momentum form's causal Butterworth filter (DESIGN.md 5b: a first order
+passes the velocity noise into the momentum column; 2-3 worked)."""
+HARMONIC_FACTOR = 2.0
+"""Cut-off = this x the excitation's highest harmonic when it is known (the order-2 filter
+passes it at 0.97) [-], and at least :data:`MIN_CUTOFF_HZ`."""
+SPECTRUM_FACTOR = 2.0
+"""Otherwise this x the positions' 99.5 % energy bandwidth [-]."""
+MIN_CUTOFF_HZ = 2.0
+"""The cut-off's floor [Hz]. The equation holds at any cut-off; what it trades is the
+quantised velocity's noise in the momentum columns (power about fc^3: errors in variables,
+a bias that does not shrink with the log) against rows and the closed loop's transients
+above the excitation. Measured on the guard robot (24 seeds, 60 s, WLS, worst |bias| / std
+over the parameters): default excitation (0.5 Hz) 1 Hz 0.54, 1.5 Hz 0.53, 2 Hz 0.43,
+3 Hz 0.75; Schroeder (1 Hz) 1.5 Hz 0.35, 2 Hz 0.19, 3 Hz 0.45, 4 Hz 1.04."""
+MARGIN_TICKS = 2
+"""Periods are cut this many ticks beyond a stencil's reach of a flagged tick [-]."""
+TRANSIENT_RATIO = 0.05
+"""After a start, outputs are dropped while the first momentum's weight squared exceeds this
+fraction of the steady-state weight of all the others (:func:`transient_samples`) [-]."""
+QUADRATURE = np.array([-1.0, 13.0, 13.0, -1.0]) / 24.0
+"""Four-point rule over ticks k-2 .. k+1 for the integral over (t_(k-1), t_k] [x T]."""
+TICKS_CHUNK = 8192
+"""Ticks whose full regressors are formed at a time (peak memory of long logs)."""
+STENCILS = {3: (np.array([-0.5, 0.0, 0.5]), 1), 5: (np.array([1, -8, 0, 8, -1]) / 12.0, 2)}
+"""Central first-difference stencils (coefficients x 1/T, reach in ticks)."""
+
+
+@dataclass(frozen=True)
+class MomentumState:
+    """What the momentum rows of one run are made of, for another model's regressor
+    (:func:`regressor_rows`): raw tick signals and the rows' construction."""
+
+    q: np.ndarray  # (N, n) positions at the ticks [rad | m]
+    v: np.ndarray  # (N, n) tick velocities [rad/s | m/s]
+    dt: float  # tick period [s]
+    valid: np.ndarray  # (N, n) period k (ending at tick k) usable for joint j
+    sos: np.ndarray  # the filter
+    skip: int  # outputs dropped after each start
+    rows: np.ndarray  # (M,) tick index of each kept row
+    row_mask: np.ndarray  # (M, n) filtered equation valid at the row
+    kink: int | None = None  # the stencil whose kink correction the rows carry
+    points: int = 3  # the velocity stencil (or 5 for measured velocities: rows_like)
+
+
+def momentum_cutoff(fs_hz: float, bandwidth_hz: float, from_harmonic: bool) -> float:
+    """The filter's cut-off [Hz]: :data:`HARMONIC_FACTOR` x the excitation's highest harmonic
+    (``from_harmonic``) or :data:`SPECTRUM_FACTOR` x the positions' energy bandwidth, at
+    least :data:`MIN_CUTOFF_HZ`, at most 0.4 x Nyquist."""
+    factor = HARMONIC_FACTOR if from_harmonic else SPECTRUM_FACTOR
+    return float(min(max(factor * bandwidth_hz, MIN_CUTOFF_HZ), 0.2 * fs_hz))
+
+
+def decimation(fs_hz: float, cutoff_hz: float) -> int:
+    """Rows about 1 / (2 fc) apart [periods]."""
+    return max(1, int(fs_hz / (2.0 * cutoff_hz)))
+
+
+def filter_sos(cutoff_hz: float, fs_hz: float, order: int) -> np.ndarray:
+    """The causal Butterworth low-pass (second-order sections)."""
+    if not 0.0 < cutoff_hz < 0.5 * fs_hz:
+        raise GuardidError(f"cut-off {cutoff_hz:g} Hz must lie in (0, {0.5 * fs_hz:g}) Hz")
+    return butter(int(order), cutoff_hz, btype="low", fs=fs_hz, output="sos")
+
+
+def transient_samples(sos) -> int:
+    """Outputs to drop after a start: the first n with h_m^2 <= :data:`TRANSIENT_RATIO` x
+    sum_i (h_i - h_(i-1))^2 for every m >= n (h the impulse response; the filtered momentum
+    difference weighs the start's momentum by h_m, every later one by h_i - h_(i-1))."""
+    n = 1
+    while True:
+        x = np.zeros(64 * n)
+        x[0] = 1.0
+        h = sosfilt(sos, x)
+        if abs(h[-1]) < 1e-9 * np.abs(h).max() or n > 4096:
+            break
+        n *= 2
+    steady = float(np.sum(np.diff(h, prepend=0.0) ** 2))
+    above = np.flatnonzero(h**2 > TRANSIENT_RATIO * steady)
+    return int(above[-1]) + 1 if above.size else 0
+
+
+def tick_velocity(q, dt: float, points: int = 3):
+    """(v (N, n) [unit/s], ok (N,) bool): central difference of the raw positions at the
+    ticks; ``ok`` False within the stencil's reach of either end."""
+    coef, reach = STENCILS[points]
+    n = len(q)
+    v = np.zeros_like(q, dtype=float)
+    ok = np.zeros(n, dtype=bool)
+    if n > 2 * reach:
+        inner = sum(c * q[k : n - 2 * reach + k] for k, c in enumerate(coef) if c) / dt
+        v[reach : n - reach] = inner
+        ok[reach : n - reach] = True
+    return v, ok
+
+
+def kink_weights(points: int = 3) -> tuple[np.ndarray, int]:
+    """(W, first): the stencil's velocity error per unit of each period's mean acceleration,
+    v_hat_k - v_k = T sum_i W[i] a_mean(period ending at tick k + first + i) [-].
+
+    A motor voltage held over each period makes the acceleration jump at the ticks; the
+    difference stencil then errs by about T (a_after - a_before) / 4 (three points)
+    instead of the O(T^2) of a smooth motion. Exactly, for an acceleration constant over each
+    period: q_(k+m) - q_k - m T v_k = T^2 sum over the periods in between of (m - i + 1/2)
+    a_i (m > 0; mirrored for m < 0)."""
+    coef, reach = STENCILS[points]
+    first = -reach + 1  # periods ending at ticks k - reach + 1 .. k + reach
+    W = np.zeros(2 * reach)
+    for m_idx, c in enumerate(coef):
+        m = m_idx - reach
+        if m > 0:
+            for i in range(1, m + 1):
+                W[i - first] += c * (m - i + 0.5)
+        elif m < 0:
+            for i in range(m + 1, 1):
+                W[i - first] += c * (i - m - 0.5)
+    return W, first
+
+
+def slope_weights(points: int = 3) -> tuple[np.ndarray, int]:
+    """(U, first): the stencil's velocity error per unit of each period's acceleration slope,
+    v_hat_k - v_k = ... + T^2 sum_i U[i] a'(period ending at tick k + first + i) [-]
+    (a linear acceleration over each period: the period-mean part is :func:`kink_weights`')."""
+    coef, reach = STENCILS[points]
+    first = -reach + 1
+    U = np.zeros(2 * reach)
+    for m_idx, c in enumerate(coef):
+        m = m_idx - reach
+        for i in range(1, m + 1):  # m > 0: the periods from tick k to k + m
+            U[i - first] -= c / 12.0
+        for i in range(m + 1, 1):  # m < 0: from tick k + m to k
+            U[i - first] += c / 12.0
+    return U, first
+
+
+def slope_term(v, dt: float, points: int = 3) -> np.ndarray:
+    """(N, n) [rad | m]: s_k - s_(k-1) with s_k = T sum_i U_i (v_i - v_(i-1))
+    (:func:`slope_weights`, v the tick velocities): within a period the held voltage's
+    current falls with the back-EMF (and viscous friction grows), so the net torque has a
+    slope -(D + Fv) a; the stencil's momentum error from it is (D + Fv) s_k (D the drive's
+    electrical damping)."""
+    U, first = slope_weights(points)
+    dv = np.zeros_like(v)
+    dv[1:] = v[1:] - v[:-1]
+    return kink_correction(dv, dt, points, U, first)
+
+
+def kink_correction(torque_mean, dt: float, points: int = 3, W=None, first=None) -> np.ndarray:
+    """(N, n) to add to the period impulses [torque x s]: e_k - e_(k-1) with e_k = T sum_i
+    W_i tau_i (:func:`kink_weights`, tau_i the drive's period-mean torque): the momentum
+    error the stencil's velocity makes at tick k where the drive torque steps at the ticks
+    (M a jumps by the drive's jump; the rest of the torque is continuous while the joint
+    moves). Zero where the stencil leaves the log (those periods are cut anyway)."""
+    if W is None:
+        W, first = kink_weights(points)
+    tau = np.asarray(torque_mean, dtype=float)
+    n = len(tau)
+    e = np.zeros_like(tau)
+    lo, hi = max(0, -first), n - (first + len(W) - 1)
+    for i, w in enumerate(W):
+        e[lo:hi] += w * tau[lo + first + i : hi + first + i]
+    e *= dt
+    out = np.zeros_like(e)
+    out[1:] = e[1:] - e[:-1]
+    return out
+
+
+def electrical_damping(description, gain) -> np.ndarray:
+    """(n,) D = gain x N Ke / R per joint: the period-mean effort's loss per unit joint speed
+    from the back-EMF [N m s/rad with the gain, A s/rad without] (0 without a drive)."""
+    out = np.zeros(len(description.joints))
+    for j, joint in enumerate(description.joints):
+        d = joint.drive
+        if d is not None and d.resistance > 0:
+            out[j] = d.gear_ratio * d.ke / d.resistance
+    return out * (1.0 if gain is None else np.asarray(gain, dtype=float))
+
+
+def period_regressor(model, q, v, dt: float, kink_points: int | None = None) -> np.ndarray:
+    """Phi (N, n, b) base regressor of the period equations (module docstring): row k is the
+    period ending at tick k (rows 0, 1 and N-1 are not defined and are zero).
+
+    ``kink_points``: the velocities come from that stencil and the drive steps at the ticks;
+    the stencil's momentum error from the steps of the rest of the torque (its period
+    integrals R_k, linear in the parameters) is added, :func:`kink_correction` of R / T, as
+    the drive's is to the impulses: together the net torque's steps."""
+    n_t, n = q.shape
+    B = model.base.B
+    exact = np.zeros((n_t, n, B.shape[1]))
+    dq = np.zeros_like(q)
+    dq[1:] = q[1:] - q[:-1]
+    exact_cols = []  # (joint, full-parameter columns integrated exactly)
+    for j, joint in enumerate(model.description.joints):
+        k = model.friction_index(j)
+        if k is None:
+            continue
+        exact[:, j, :] += np.outer(dq[:, j], B[k])  # viscous: Fv (q_k - q_(k-1))
+        exact[:, j, :] += dt * B[k + 2]  # offset: Fo T
+        cols = [k, k + 2]
+        if joint.friction.model == "sign":  # the joint moves one way through the period
+            exact[:, j, :] += np.outer(dt * np.sign(dq[:, j]), B[k + 1])
+            cols.append(k + 1)
+        exact_cols.append((j, cols))
+    p_mom, rest = np.empty_like(exact), np.empty_like(exact)
+    for s in range(0, n_t, TICKS_CHUNK):  # per tick; the full-parameter temporaries in chunks
+        c = slice(s, s + TICKS_CHUNK)
+        p_mom[c] = model.momentum_regressor(q[c], v[c]) @ B
+        rest_full = model.rest_regressor(q[c], v[c])
+        for j, cols in exact_cols:
+            rest_full[:, j, cols] = 0.0
+        rest[c] = rest_full @ B
+        del rest_full
+    out = np.zeros_like(exact)
+    if n_t >= 4:
+        w = QUADRATURE * dt
+        integral = exact  # R_k: the rest's integral over period k
+        integral[2:-1] += (w[0] * rest[:-3] + w[1] * rest[1:-2] + w[2] * rest[2:-1]
+                           + w[3] * rest[3:])  # fmt: skip
+        integral[[0, 1, -1]] = 0.0
+        out[1:] = p_mom[1:] - p_mom[:-1]
+        out += integral
+        if kink_points:
+            out += kink_correction(integral / dt, dt, kink_points)
+            slope = slope_term(v, dt, kink_points)
+            for j in range(n):  # viscous friction's share of the net torque's slope
+                k = model.friction_index(j)
+                if k is not None:
+                    out[:, j, :] += np.outer(slope[:, j], B[k])
+        out[[0, 1, -1]] = 0.0
+    return out
+
+
+def period_impulse(effort, dt: float, gain, effort_is_torque: bool) -> np.ndarray:
+    """(N, n) drive impulse of the period ending at each tick [N m s | N s | effort x s]:
+    gain x period-mean current x T, or the four-point rule over torque samples."""
+    e = np.asarray(effort, dtype=float)
+    if gain is not None:
+        e = e * np.asarray(gain, dtype=float)
+    if not effort_is_torque:
+        return e * dt
+    out = np.zeros_like(e)
+    w = QUADRATURE * dt
+    out[2:-1] = w[0] * e[:-3] + w[1] * e[1:-2] + w[2] * e[2:-1] + w[3] * e[3:]
+    return out
+
+
+def _dilate(bad, before: int, after: int) -> np.ndarray:
+    """(N, n): True where ``bad`` (N, n) is True at any of the ticks k - before .. k + after."""
+    c = np.concatenate([np.zeros((1, bad.shape[1]), int), np.cumsum(bad, axis=0)])
+    n = len(bad)
+    hi = np.minimum(np.arange(n) + after + 1, n)
+    lo = np.clip(np.arange(n) - before, 0, n)
+    return (c[hi] - c[lo]) > 0
+
+
+def flagged_ticks(q, v, dt, *, threshold, flat_is_stuck, position_limits, resolution=None):
+    """(N, n) bool: ticks where a joint's equation does not hold nearby: |v| below
+    ``threshold`` (n,) [unit/s] (stuck, reversing), no count in the adjacent periods
+    (``flat_is_stuck``), or some joint at a position limit (:func:`at_stop`)."""
+    bad = slow_ticks(q, v, threshold=threshold, flat_is_stuck=flat_is_stuck)
+    if position_limits is not None:
+        bad |= at_stop(q, position_limits, resolution)[:, None]
+    return bad
+
+
+def slow_ticks(q, v, *, threshold, flat_is_stuck):
+    """(N, n) bool: |v| below ``threshold`` (n,) [unit/s], a reversal of the count
+    direction, or (``flat_is_stuck``) no count in an adjacent period."""
+    bad = np.abs(v) < np.asarray(threshold, dtype=float)
+    dq = np.diff(q, axis=0)
+    if flat_is_stuck:
+        flat = dq == 0.0
+        bad[1:] |= flat
+        bad[:-1] |= flat
+    rev = np.sign(dq[1:]) * np.sign(dq[:-1]) < 0
+    bad[1:-1] |= rev
+    return bad
+
+
+def at_stop(q, position_limits, resolution=None) -> np.ndarray:
+    """(N,) bool: some joint at (or beyond) a position limit
+    (:func:`~guardid.conditioning.stiction.at_position_limit`). The stop's contact torque
+    acts on its own joint, but the impact's velocity jump breaks every joint's velocity
+    stencil (the momentum couples the joints): every joint is cut there."""
+    return at_position_limit(q, position_limits, resolution)
+
+
+def period_validity(n_t, broken, vel_reach, bad):
+    """(N, n) bool: period k usable for joint j: every tick its terms use (k-2-reach ..
+    k+1+reach; ``vel_reach`` the velocity stencil's, twice it with the kink correction)
+    lies in one unbroken stretch of the log, and no flagged tick of joint j
+    lies within that span plus :data:`MARGIN_TICKS`. ``broken`` (N,): the period ending at
+    tick k is missing (a lost tick, a gap)."""
+    lo, hi = 2 + vel_reach, 1 + vel_reach
+    brk = np.zeros((n_t, 1), bool)
+    brk[:, 0] = broken
+    brk[0] = True  # no period ends at the first tick
+    # periods k-lo+1 .. k+hi must all exist
+    span_bad = _dilate(brk, hi, lo - 1)[:, 0]
+    idx = np.arange(n_t)
+    inside = (idx - lo >= 0) & (idx + hi <= n_t - 1)
+    ok = inside & ~span_bad
+    near = _dilate(bad, lo + MARGIN_TICKS, hi + MARGIN_TICKS)
+    return ok[:, None] & ~near
+
+
+def _filter_stretches(Phi, imp, valid, sos, skip: int):
+    """Each joint's valid stretches filtered (at rest at every start; the first ``skip``
+    outputs dropped): (A (N, n, b), y (N, n), good (N, n)) on every tick."""
+    n_t, n, b = Phi.shape
+    A = np.zeros_like(Phi)
+    y = np.zeros((n_t, n))
+    good = np.zeros((n_t, n), dtype=bool)
+    for j in range(n):
+        v = np.concatenate([[False], valid[:, j], [False]])
+        starts = np.flatnonzero(~v[:-1] & v[1:])
+        ends = np.flatnonzero(v[:-1] & ~v[1:])
+        for s, e in zip(starts, ends, strict=True):
+            if e - s <= skip:
+                continue
+            block = np.column_stack([imp[s:e, j], Phi[s:e, j, :]])
+            out = sosfilt(sos, block, axis=0)
+            y[s + skip : e, j] = out[skip:, 0]
+            A[s + skip : e, j, :] = out[skip:, 1:]
+            good[s + skip : e, j] = True
+    return A, y, good
+
+
+def filtered_rows(Phi, imp, valid, sos, skip: int, decimate: int):
+    """Filter each joint's valid stretches, keep every ``decimate``-th tick: (rows (M,) tick
+    indices, A (M, n, b), y (M, n), row_mask (M, n)); a joint's row is zero where its
+    filtered equation is not valid."""
+    A, y, good = _filter_stretches(Phi, imp, valid, sos, skip)
+    rows = np.arange(0, len(Phi), decimate)
+    rows = rows[np.any(good[rows], axis=1)]
+    mask = good[rows]
+    return rows, A[rows] * mask[:, :, None], y[rows] * mask, mask
+
+
+def rows_like(state: MomentumState, model, q) -> np.ndarray:
+    """The filtered period regressor (M, n, b) [torque units] of positions ``q`` (N, n) on
+    the ticks, cuts, filter and kept rows of ``state`` (velocities from ``q`` by the same
+    stencil): a simulated run's rows aligned with the measured one's."""
+    v, _ = tick_velocity(q, state.dt, state.points)
+    return regressor_rows(replace(state, q=q, v=v), model)
+
+
+def regressor_rows(state: MomentumState, model) -> np.ndarray:
+    """The filtered period regressor (M, n, b) of ``model`` on the rows of ``state`` (another
+    parameter set's model scored on the same rows) [torque units]."""
+    Phi = period_regressor(model, state.q, state.v, state.dt, state.kink)
+    A, _, _ = _filter_stretches(Phi, np.zeros(Phi.shape[:2]), state.valid, state.sos, state.skip)
+    return A[state.rows] * state.row_mask[:, :, None] / state.dt
+
+
+def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: int = DEFAULT_ORDER,
+                       decimate: int | None = None, effort_is_torque: bool = False,
+                       stiction_threshold=None, flat_is_stuck: bool = False,
+                       position_limits=None, points: int | None = None,
+                       velocity=None):  # fmt: skip
+    """One run in the momentum form: (Conditioned, Phi (M, n, b) filtered base regressor of
+    all base columns [torque units], y (M, n) filtered drive torque) on every ``decimate``-th
+    tick (default about 1 / (2 fc) apart); the usable rows are ``cond.mask``, each joint's
+    ``cond.joint_mask`` (a zero row where a joint's equation is cut).
+
+    ``t_s`` (N,) tick times [s] (steps other than the median one are cuts: lost ticks,
+    gaps); ``q`` (N, n) raw positions [rad | m]; ``effort`` (N, n) period-mean motor current
+    [A] (``effort_is_torque``: instantaneous torque samples [N m | N]); ``gain`` (n,) torque
+    per effort unit or None (current units). ``stiction_threshold``: per joint [unit/s]
+    (NaN: 5 % of the joint's peak speed; 0: never flagged by speed); ``flat_is_stuck``: a
+    period without an encoder count flags its ticks; ``position_limits`` (n, 2) or None.
+    ``velocity`` (N, n) [unit/s]: measured joint velocities, used instead of the difference
+    stencil (``points``: 3, or 5; default 3 with its corrections for a period-mean current,
+    5 for torque samples, whose motion is smooth).
+    """
+    from guardid.conditioning.pipeline import Conditioned
+
+    t = np.asarray(t_s, dtype=float)
+    q = np.asarray(q, dtype=float).reshape(len(t), -1)
+    effort = np.asarray(effort, dtype=float).reshape(q.shape)
+    n_j = q.shape[1]
+    steps = np.diff(t)
+    dt = float(np.median(steps))
+    fs = 1.0 / dt
+    broken = np.zeros(len(t), dtype=bool)
+    broken[1:] = np.abs(steps - dt) > 1e-6 * dt
+    if points is None:  # torque samples: smooth motion, the fourth-order stencil
+        points = 5 if effort_is_torque else 3
+    if velocity is None:
+        v, vel_ok = tick_velocity(q, dt, points)
+        reach = STENCILS[points][1]
+        how = f"{points}-point central difference of the raw positions"
+    else:
+        v, reach = np.asarray(velocity, dtype=float).reshape(q.shape), 0
+        vel_ok = np.ones(len(t), dtype=bool)
+        how = "measured"
+    for k in np.flatnonzero(broken):  # no stencil across a cut
+        vel_ok[max(k - reach, 0) : k + reach] = False
+    base_thr = default_stiction_threshold(v[vel_ok] if vel_ok.any() else v)
+    thr = base_thr
+    if stiction_threshold is not None:
+        given = np.broadcast_to(np.asarray(stiction_threshold, float), base_thr.shape)
+        thr = np.where(np.isnan(given), base_thr, given)
+    slow = slow_ticks(q, v, threshold=thr, flat_is_stuck=flat_is_stuck)
+    stop = np.zeros(len(t), dtype=bool)
+    if position_limits is not None:
+        stop = at_stop(q, position_limits)
+    bad = slow | stop[:, None]
+    kink = points if velocity is None and not effort_is_torque else None  # steps at ticks
+    span = 2 * reach if kink else reach  # the kink correction reaches one stencil further
+    valid = period_validity(len(t), broken, span, bad)
+    cut = ~period_validity(len(t), broken, span, np.zeros_like(bad))  # ends, gaps
+    cut_slow = ~period_validity(len(t), broken, span, slow) & ~cut
+    cut_stop = ~valid & ~cut & ~cut_slow
+    sos = filter_sos(cutoff_hz, fs, order)
+    skip = transient_samples(sos)
+    k = decimation(fs, cutoff_hz) if decimate is None else int(decimate)
+    Phi = period_regressor(model, q, v, dt, kink)
+    imp = period_impulse(effort, dt, gain, effort_is_torque)
+    if kink:
+        imp = imp + kink_correction(imp / dt, dt, points)
+        imp = imp - electrical_damping(model.description, gain) * slope_term(v, dt, points)
+    A_all, y_all, good = _filter_stretches(Phi, imp, valid, sos, skip)
+    del Phi
+    rows = np.arange(0, len(t), k)
+    jm = good[rows]
+    A = A_all[rows] * jm[:, :, None] / dt
+    y = y_all[rows] * jm / dt
+    del A_all, y_all
+    mask = np.any(jm, axis=1)
+    qdd = np.zeros_like(v)
+    qdd[1:-1] = (v[2:] - v[:-2]) / (2.0 * dt)
+    state = MomentumState(q, v, dt, valid, sos, skip, rows, jm, kink,
+                          points if velocity is None else 5)  # fmt: skip
+    share = 100.0 * valid.sum(0) / max(len(t), 1)
+    notes = [
+        f"cut-off {cutoff_hz:.3g} Hz",
+        "equation: filtered momentum (impulse per period = momentum change + integral of "
+        f"the rest; causal Butterworth order {order} at {cutoff_hz:.3g} Hz on both sides, "
+        f"{skip} periods dropped after each start)",
+        f"velocities at the ticks: {how}",
+        "periods usable per joint: "
+        + ", ".join(f"{s:.0f} %" for s in share)
+        + f" (stiction threshold {np.array2string(thr, precision=4)}, stencil reach "
+        f"+ {MARGIN_TICKS} ticks)",
+    ]
+    if broken[1:].any():
+        notes.append(f"{int(broken[1:].sum())} missing or uneven tick steps: cut there")
+    if stop.any():
+        notes.append(f"{int(stop.sum())} samples at a position limit (hard stop): every "
+                     "joint's periods near them cut")  # fmt: skip
+    if k > 1:
+        notes.append(f"decimated by {k}: {fs / k:.4g} Hz")
+    dropped = {  # joint periods, in rows (/ decimation)
+        "at the ends or a gap (stencils)": int(round(cut.sum() * n_j / k)),
+        "near zero velocity": int(round(cut_slow.sum() / k)),
+        "at or next to a hard stop": int(round(cut_stop.sum() / k)),
+        "in the filter's start after a cut": int(round((valid & ~good).sum() / k)),
+    }
+    cond = Conditioned(
+        t[rows], q[rows], v[rows], qdd[rows], y, mask, np.any(bad[rows], axis=1),
+        np.asarray(thr, dtype=float), float(cutoff_hz), k,
+        "N m" if gain is not None else "effort", notes, None, int(np.any(bad, axis=1).sum()),
+        dropped, joint_mask=jm, equation="momentum", momentum=state,
+    )  # fmt: skip
+    return cond, A, y

@@ -1,0 +1,295 @@
+"""The filtered momentum form (guardid.conditioning.momentum, DESIGN.md section 5b).
+
+Independent truths: pinocchio's mass matrix M(q) and Coriolis matrix C(q, qd) (the momentum
+M v and the rest -C^T v + g, with the identity dM/dt = C + C^T), the friction torque written
+from docs/ROBOT_YAML.md (tests/test_pinocchio.py), the simulated plant's own state and
+exact period-mean current, and the robot YAML's parameters.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from test_pinocchio import CHAINS, friction_torque, perturbed, pin_model, rotor_mass_matrix
+
+from guardid.conditioning import momentum as mom
+from guardid.conditioning.options import ConditioningOptions
+from guardid.dynamics import build_model
+from guardid.errors import ConfigError
+from guardid.identify.rows import drive_gain, free_columns, position_limits, stacked_rows
+from guardid.plant.plant import Plant
+from guardid.robot import load_robot
+
+PRISMATIC = """
+name: pr
+gravity: [0.0, 0.0, -9.81]
+joints:
+  - {type: prismatic, dh: {a: 0.0, alpha: 1.5707963267948966, d: 0.3, theta: 0.2},
+     limits: {position: [-0.4, 0.4], velocity: 1, acceleration: 1}, drive: null,
+     friction: {viscous: 0.3, coulomb: 0.1, model: tanh, velocity_scale: 0.05}}
+  - {type: revolute, dh: {a: 0.25, alpha: -0.4, d: 0.05, theta: 0.0},
+     limits: {position: null, velocity: 2, acceleration: 5}, drive: null,
+     friction: {viscous: 0.05, coulomb: 0.2}}
+links:
+  - {mass: 3.0, com: [0.02, -0.1, 0.05], inertia: {xx: 0.05, yy: 0.06, zz: 0.04, xz: 0.003}}
+  - {mass: 1.2, com: [-0.1, 0.01, 0.03], inertia: {xx: 0.01, yy: 0.02, zz: 0.025, xy: 0.001}}
+"""
+
+
+def _descriptions(tmp_path):
+    path = tmp_path / "pr.yaml"
+    path.write_text(PRISMATIC)
+    out = {name: load_robot(name) for name in CHAINS}
+    out["guard perturbed"] = perturbed(load_robot("guard"), 3)
+    out["pr"] = load_robot(path)
+    return out
+
+
+def test_momentum_and_rest_match_pinocchio(tmp_path):
+    """Y_p theta = M(q) v and Y_r theta = -C(q, v)^T v + g(q) + friction(v) (pinocchio), on
+    random states of every shipped chain, a perturbed guard and a prismatic-revolute chain;
+    and both are linear in the base parameters (the base regressor gives the same)."""
+    rng = np.random.default_rng(7)
+    for name, desc in _descriptions(tmp_path).items():
+        model = build_model(desc)
+        pm = pin_model(desc)
+        data = pm.createData()
+        n = desc.n_dof
+        q = rng.uniform(-np.pi, np.pi, (6, n))
+        for j, joint in enumerate(desc.joints):
+            if joint.type == "prismatic":
+                q[:, j] = rng.uniform(-0.4, 0.4, 6)
+        v = rng.normal(0.0, 2.0, (6, n))
+        p = model.momentum_regressor(q, v) @ model.params
+        rest = model.rest_regressor(q, v) @ model.params
+        base = model.base.values(model.params)
+        p_base = model.momentum_regressor(q, v) @ model.base.B @ base
+        for k in range(len(q)):
+            m = pin.crba(pm, data, q[k])
+            m = np.triu(m) + np.triu(m, 1).T + rotor_mass_matrix(desc)
+            c = pin.computeCoriolisMatrix(pm, data, q[k], v[k])
+            g = pin.computeGeneralizedGravity(pm, data, q[k])
+            want_p = m @ v[k]
+            want_r = -c.T @ v[k] + g + friction_torque(desc, v[k : k + 1])[0]
+            scale_p, scale_r = np.abs(want_p).max(), np.abs(want_r).max()
+            assert np.abs(p[k] - want_p).max() <= 1e-10 * scale_p, name
+            assert np.abs(p_base[k] - want_p).max() <= 1e-9 * scale_p, name
+            assert np.abs(rest[k] - want_r).max() <= 1e-10 * scale_r, name
+
+
+def test_rest_is_the_torque_minus_the_momentum_derivative(tmp_path):
+    """Along a smooth path q(t) = a + b sin(w t): tau(q, qd, qdd) (pinocchio's rnea plus the
+    friction) = d/dt (M(q) qd) (central difference of pinocchio's M qd, step 1e-5 s) +
+    Y_r theta, to the difference's accuracy."""
+    desc = _descriptions(tmp_path)["pr"]
+    model = build_model(desc)
+    pm = pin_model(desc)
+    data = pm.createData()
+    a, b, w = np.array([0.1, -0.4]), np.array([0.2, 1.1]), np.array([2.1, 0.7])
+    rotor = rotor_mass_matrix(desc)
+
+    def state(t):
+        return a + b * np.sin(w * t), b * w * np.cos(w * t), -b * w * w * np.sin(w * t)
+
+    def momentum(t):
+        q, qd, _ = state(t)
+        m = pin.crba(pm, data, q)
+        return (np.triu(m) + np.triu(m, 1).T + rotor) @ qd
+
+    h = 1e-5
+    for t in (0.1, 0.9, 2.3):
+        q, qd, qdd = state(t)
+        tau = pin.rnea(pm, data, q, qd, qdd) + rotor @ qdd + friction_torque(desc, qd[None])[0]
+        dp = (momentum(t + h) - momentum(t - h)) / (2 * h)
+        rest = model.rest_regressor(q[None], qd[None])[0] @ model.params
+        np.testing.assert_allclose(dp + rest, tau, rtol=0, atol=1e-7 * np.abs(tau).max())
+
+
+def _plant_run(seconds=30.0, noise=False, seed=0):
+    """The guard's plant under a position loop on its true state tracking sums of sines:
+    tick times [s], true q [rad], true qd [rad/s], exact period-mean current [A] (the mean
+    over the period ending at each tick), measured counts [rad] and current [A]."""
+    desc = load_robot("guard")
+    plant = Plant(desc, noise=noise, seed=seed)
+    period = plant.dt
+    t = np.arange(int(seconds / period)) * period
+    ref = np.column_stack(
+        [
+            0.6 * np.sin(2 * np.pi * 0.23 * t) + 0.3 * np.sin(2 * np.pi * 0.61 * t),
+            0.2 + 0.2 * np.sin(2 * np.pi * 0.31 * t) + 0.1 * np.sin(2 * np.pi * 0.83 * t),
+        ]
+    )
+    rows = []
+    q = qd = np.zeros(2)
+    for k in range(len(t)):
+        s = plant.step(list(np.clip(40.0 * (ref[k] - q) - qd, -12.0, 12.0)))
+        q, qd = np.array(s.q), np.array(s.qd)
+        rows.append((*s.q, *s.qd, *s.current_true, *s.q_sensed, *s.current))
+    x = np.array(rows)
+    return t + period, x[:, 0:2], x[:, 2:4], x[:, 4:6], x[:, 6:8], x[:, 8:10]
+
+
+@pytest.fixture(scope="module")
+def plant_run():
+    return _plant_run()
+
+
+def test_period_identity_holds_on_the_plant(plant_run):
+    """impulse_k = N eta Kt i_mean T (the plant's exact period mean) equals the momentum
+    change plus the integral of the rest with the true parameters, on every period where
+    the joint moves (no stick, no stop nearby), to the quadrature's accuracy: 1e-4 of the
+    impulses' peak (the plant's own state at the ticks)."""
+    t, q, qd, i_mean, _, _ = plant_run
+    desc = load_robot("guard")
+    model = build_model(desc)
+    period = desc.sample_period
+    phi = mom.period_regressor(model, q, qd, period)
+    imp = mom.period_impulse(i_mean, period, drive_gain(desc), False)
+    bad = mom.flagged_ticks(q, qd, period, threshold=np.full(2, 0.02), flat_is_stuck=False,
+                            position_limits=position_limits(desc))  # fmt: skip
+    valid = mom.period_validity(len(t), np.zeros(len(t), bool), 0, bad)
+    assert valid.mean(0).min() > 0.7
+    r = imp - phi @ model.base.values(model.params)
+    for j in range(2):
+        peak = np.abs(imp[valid[:, j], j]).max()
+        assert np.abs(r[valid[:, j], j]).max() <= 1e-4 * peak
+        # the equation is not empty: a 5 % wrong rotor inertia leaves 10 x that residual
+        wrong = model.params.copy()
+        wrong[model.param_names.index(f"Ia{j + 1}")] *= 1.05
+        r_wrong = imp - phi @ model.base.values(wrong)
+        assert np.abs(r_wrong[valid[:, j], j]).max() > 1e-3 * peak
+
+
+def test_identification_recovers_the_truth_on_true_signals(plant_run):
+    """The plant's true positions and exact period-mean currents in the momentum form,
+    scored in units of the std that WLS reports on the same run as measured (quantised
+    counts and current, no sensor noise: a small std). With the plant's true tick
+    velocities every base parameter comes within 0.05 std (the form is exact up to the
+    quadrature); with velocities from the difference stencil of the true positions (and its
+    corrections for the torque steps and slopes) within 0.3 std (without the corrections,
+    1.5 std: this test's stiff position loop changes the voltage a lot every tick)."""
+    from guardid.estimators import WeightedLeastSquares
+
+    t, q, qd, i_mean, q_meas, i_meas = plant_run
+    desc = load_robot("guard")
+    model = build_model(desc)
+    opts = ConditioningOptions(equation="momentum", cutoff_hz=2.0)
+    measured = stacked_rows([(t, q_meas, i_meas)], desc, opts)
+    std = WeightedLeastSquares().fit(measured.A, measured.y).std_
+    free = free_columns(model, desc)
+    truth = model.base.values(model.params)[free]
+    for velocity, bound in ((qd, 0.05), (None, 0.3)):
+        run = (t, q, i_mean) if velocity is None else (t, q, i_mean, velocity)
+        true = stacked_rows([run], desc, opts.with_(flat_is_stuck=False))
+        assert true.options.equation == "momentum" and true.options.order == mom.DEFAULT_ORDER
+        theta = WeightedLeastSquares().fit(true.A, true.y).theta_
+        z = (theta - truth) / std
+        assert np.abs(z).max() < bound, dict(zip([model.base.names[i] for i in free], z,
+                                                 strict=True))  # fmt: skip
+
+
+def test_measured_run_within_a_few_std(plant_run):
+    """The same run as the encoder and the ADC report it (quantised, no noise), identified
+    with identify's defaults: the momentum form is chosen, and WLS's truth lies within 3 of
+    its std for every parameter."""
+    from guardid.identify.pipeline import identify
+
+    t, _, _, _, q_meas, i_meas = plant_run
+    desc = load_robot("guard")
+    model = build_model(desc)
+    res = identify(t, q_meas, i_meas, desc, methods=("wls",), highest_harmonic_hz=0.83)
+    assert res.conditioning.equation == "momentum"
+    w = res.results["wls"]
+    truth = dict(zip(model.base.names, model.base.values(model.params), strict=True))
+    z = (w.theta - np.array([truth[n] for n in res.names])) / w.std
+    assert np.abs(z).max() < 3.0, dict(zip(res.names, z, strict=True))
+
+
+def test_cuts_at_missing_ticks_and_per_joint(plant_run):
+    """A lost tick cuts every joint's stretch (its period has no impulse); a joint flagged
+    as stuck cuts only its own equation; rows where a joint is cut are zero for it."""
+    t, q, _, i_mean, _, _ = plant_run
+    desc = load_robot("guard")
+    model = build_model(desc)
+    keep = np.ones(len(t), bool)
+    keep[1000] = False
+    kw = {"gain": drive_gain(desc), "cutoff_hz": 2.0, "stiction_threshold": 0.03}
+    cond, A, y = mom.condition_momentum(t[keep], q[keep], i_mean[keep], model, **kw)
+    whole = mom.condition_momentum(t, q, i_mean, model, **kw)[0].momentum.valid
+    valid = cond.momentum.valid
+    # period 1000 (the new index) spans the lost tick; period k's terms use ticks k-4 ..
+    # k+3 (velocity stencil, quadrature, and the stencil corrections one period further)
+    assert not valid[997:1004].any()
+    np.testing.assert_array_equal(valid[:997], whole[:997])
+    np.testing.assert_array_equal(valid[1004:], whole[1005:])
+    jm = cond.joint_mask
+    assert np.all(A[~jm] == 0.0) and np.all(y[~jm] == 0.0)
+    assert (jm[:, 0] != jm[:, 1]).any()  # some rows hold one joint's equation only
+
+
+def test_options_record_and_read_back_the_equation():
+    """params.yaml's conditioning carries the equation; a file written before the field
+    existed is read as the acceleration form; a wrong value is a one-line ConfigError."""
+    used = ConditioningOptions(equation="momentum", cutoff_hz=2.0, order=2)
+    back = ConditioningOptions.from_dict(used.to_dict())
+    assert back == used
+    old = {k: v for k, v in used.to_dict().items() if k != "equation"}
+    assert ConditioningOptions.from_dict(old).equation == "acceleration"
+    with pytest.raises(ConfigError, match="conditioning.equation"):
+        ConditioningOptions.from_dict({"equation": "energy"})
+
+
+def test_torque_samples_explicit_momentum_and_automatic_acceleration():
+    """A foreign log of instantaneous torque samples (the DFKI pendulum's closed-form model,
+    tests/synthetic.py: tanh Coulomb friction, a coupled rotor, 15-bit encoder, torque noise):
+    the automatic form is the acceleration one (said so); asked for, the momentum form (the
+    impulse by the four-point rule, the five-point stencil) puts the closed-form truth within
+    3 of WLS's std for every parameter."""
+    import synthetic
+
+    from guardid.estimators import WeightedLeastSquares
+
+    desc = load_robot("dfki_double_pendulum")
+    t, q, tau = synthetic.log(100.0, 0.2, 2.0, seed=0)
+    auto = stacked_rows([(t, q, tau)], desc, effort_is_torque=True, options=None)
+    assert auto.options.equation == "acceleration"
+    assert any("measured torque samples" in n for n in auto.cond.notes)
+    rows = stacked_rows([(t, q, tau)], desc, ConditioningOptions(equation="momentum"),
+                        effort_is_torque=True)  # fmt: skip
+    w = WeightedLeastSquares().fit(rows.A, rows.y)
+    truth = synthetic.truth()
+    z = (w.theta_ - np.array([truth[n] for n in synthetic.NAMES])) / w.std_
+    assert np.abs(z).max() < 3.0, dict(zip(synthetic.NAMES, z, strict=True))
+
+
+def test_old_params_files_validate_in_the_acceleration_form():
+    """``guardid validate`` reads a params file's conditioning: without ``equation`` (written
+    before the field) or without ``conditioning`` at all, the acceleration form."""
+    from guardid.identify.validation import stored_conditioning
+
+    old = {"conditioning": {"cutoff_hz": 4.0, "order": 4, "decimate": None}}
+    assert stored_conditioning("p.yaml", old).equation == "acceleration"
+    older = {"cutoff_hz": 4.0, "parallel_filter_hz": None}
+    assert stored_conditioning("p.yaml", older).equation == "acceleration"
+    new = {"conditioning": {"cutoff_hz": 2.0, "order": 2, "equation": "momentum"}}
+    assert stored_conditioning("p.yaml", new).equation == "momentum"
+
+
+def test_rows_of_other_positions_line_up_with_the_measured_ones(plant_run):
+    """``momentum_rows_of`` (instruments from a simulated run) on the measured positions
+    themselves gives the measured rows' regressor; on the true positions rows close to them
+    (the same cuts and filter; the difference is the quantisation)."""
+    from guardid.identify.rows import momentum_rows_of
+
+    t, q, _, _, q_meas, i_meas = plant_run
+    desc = load_robot("guard")
+    model = build_model(desc)
+    free = free_columns(model, desc)
+    rows = stacked_rows([(t, q_meas, i_meas)], desc, ConditioningOptions(equation="momentum"))
+    again = momentum_rows_of(rows, 0, q_meas, model, free)
+    np.testing.assert_allclose(again, rows.A, rtol=0, atol=1e-12 * np.abs(rows.A).max())
+    true = momentum_rows_of(rows, 0, q, model, free)
+    assert true.shape == rows.A.shape
+    rel = np.linalg.norm(true - rows.A) / np.linalg.norm(rows.A)
+    assert 0 < rel < 0.05
