@@ -164,6 +164,27 @@ def run_job(job: Job):
     return job.seed, out, None
 
 
+def accuracy(results, truth) -> list[str]:
+    """Lines: per base parameter and method, the median and worst |estimate - truth| over
+    the seeds, in % of the truth (absolute, in the parameter's unit, where the truth is 0);
+    ``results``: method -> (names, estimates (S, p))."""
+    methods = list(results)
+    names = results[methods[0]][0]
+    lines = [f"{'param':8s} {'truth':>9s}" + "".join(f" {m.upper() + ' med/worst':>22s}"
+                                                    for m in methods)]  # fmt: skip
+    for i, n in enumerate(names):
+        tv = truth[n]
+        cells = []
+        for m in methods:
+            err = np.abs(results[m][1][:, i] - tv)
+            if tv != 0:
+                err = 100.0 * err / abs(tv)
+            unit = " %" if tv != 0 else "  "
+            cells.append(f" {np.median(err):9.3g}/{err.max():9.3g}{unit}")
+        lines.append(f"{n:8s} {tv:9.4g}" + "".join(cells))
+    return lines
+
+
 def statistics(names, theta, std, truth):
     """Rows (name, truth, spread/std, bias in std, share within 3 std) and the overall share."""
     tv = np.array([truth[n] for n in names])
@@ -250,6 +271,10 @@ def report(name: str, s: Set, results, errors, truth, port_options: str) -> list
         ok, text = verdict(rows, share, len(seeds))
         print(f"     {text}", flush=True)
         out.append(f"{name:14s} {m.upper():6s} {len(seeds):3d} seeds: {text}")
+    estimates = {m: (results[seeds[0]][m][0], np.array([results[k][m][1] for k in seeds]))
+                 for m in results[seeds[0]]}  # fmt: skip
+    print(f"|estimate - truth| over {len(seeds)} seeds, median/worst:")
+    print("\n".join(accuracy(estimates, truth)), flush=True)
     return out
 
 
