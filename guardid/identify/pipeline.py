@@ -5,9 +5,10 @@ rows (:func:`~guardid.identify.rows.stacked_rows`) -> the estimators named in th
 (:mod:`guardid.identify.methods`, registered by name) -> result (:class:`Identification`:
 estimates with their uncertainty, checks, the motors' electrical parameters).
 
-Time comes from the tick column; lost ticks are gaps, which the conditioning stage
-bridges by resampling. Everything :func:`identify` is told besides the data is one
-:class:`IdentifyOptions`.
+Time comes from the tick column; lost ticks are gaps: a run is split at a long one
+(:mod:`guardid.identify.segments`, said in the warnings), shorter ones are bridged (the
+acceleration form) or cut (the momentum form) by the conditioning stage. Everything
+:func:`identify` is told besides the data is one :class:`IdentifyOptions`.
 """
 
 from __future__ import annotations
@@ -212,6 +213,7 @@ def identify(runs, description, options: IdentifyOptions | None = None) -> Ident
     runs = list(runs)
     torque = _effort_is_torque(runs)
     methods = methods_for(options.methods)  # unknown names refused before any work
+    runs, split = _segments(runs, options)
     for check in dict.fromkeys(m.check for m in methods if m.check is not None):
         check(options.methods, runs, description)
     # segments -> conditioned signals -> equation rows, every run on its own, rows stacked
@@ -222,7 +224,28 @@ def identify(runs, description, options: IdentifyOptions | None = None) -> Ident
     )  # fmt: skip
     fit_rows = _fit_rows(rows, runs, description, options, torque)
     results = _fit_all(methods, fit_rows)  # the estimators, in the order asked
-    return _result_of(fit_rows, results, options, torque)  # checks, warnings, motors
+    result = _result_of(fit_rows, results, options, torque)  # checks, warnings, motors
+    if split is not None:
+        result.warnings[:0] = split.lines(result.cutoff_hz)
+    return result
+
+
+def _segments(runs, options):
+    """(runs, Split or None): the runs split at their long gaps
+    (:func:`~guardid.identify.segments.split_runs`, the limit from the given cut-off or the
+    first run's harmonic), unless the caller split them already (a segment among them:
+    ``Run.source`` set) or none has a long gap. GuardidError when no segment is left."""
+    from guardid.identify.segments import split_runs
+
+    if any(getattr(r, "source", None) for r in runs):
+        return runs, None
+    cutoff = options.conditioning.cutoff_hz if options.conditioning is not None else None
+    split = split_runs(runs, cutoff, runs[0].highest_harmonic_hz)
+    if not split.gaps and not split.dropped:
+        return runs, None
+    if not split.runs:
+        raise GuardidError("; ".join(split.lines()))
+    return split.runs, split
 
 
 def _effort_is_torque(runs) -> bool:
