@@ -200,10 +200,13 @@ def run_from_arrays(
 def identify(runs, description, options: IdentifyOptions | None = None) -> Identification:
     """Identify the base parameters of ``description`` from ``runs`` (a list of :class:`Run`).
 
-    Each run is conditioned on its own and the equation rows are stacked (one fit,
-    :func:`stacked_rows`; the cut-off, when not given in ``options.conditioning``, is chosen
-    by cross-validation, informed by the first run's ``highest_harmonic_hz``); measured
-    velocities (``Run.qd``) replace the differentiated positions when every run has them.
+    A run is split at its long gaps (:mod:`guardid.identify.segments`, named in the
+    warnings) unless the caller split it. Each run is conditioned on its own and the
+    equation rows are stacked (one fit, :func:`stacked_rows`; the equation form and the
+    cut-off, when not given in ``options.conditioning``: the momentum form at 2 x the first
+    run's ``highest_harmonic_hz`` for motor-current logs on a tick grid, else the
+    acceleration form, its cut-off chosen by cross-validation); measured velocities
+    (``Run.qd``) replace the differentiated positions when every run has them.
     Then every method of ``options.methods`` (:mod:`guardid.identify.methods`) is fitted on
     the rows, and the motors' R and Ke are estimated from every run's voltage and ticks
     together (a motor-equation row never spans two runs) when all runs have both and the
