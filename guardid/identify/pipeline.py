@@ -213,7 +213,7 @@ def identify(runs, description, options: IdentifyOptions | None = None) -> Ident
     effort is motor current in amperes. The options used, cut-off resolved, are in the result.
     """
     options = options or IdentifyOptions()
-    runs = list(runs)
+    runs = [_in_joint_order(r, description) for r in runs]
     torque = _effort_is_torque(runs)
     methods = methods_for(options.methods)  # unknown names refused before any work
     runs, split = _segments(runs, options)
@@ -231,6 +231,22 @@ def identify(runs, description, options: IdentifyOptions | None = None) -> Ident
     if split is not None:
         result.warnings[:0] = split.lines(result.cutoff_hz)
     return result
+
+
+def _in_joint_order(run, description):
+    """``run`` with its per-joint columns in ``description``'s joint order, its angles
+    checked against its counts (:func:`~guardid.identify.checks.check_log_robot`; a copy,
+    the robot's name not compared), when a guardid log's columns name other joints or
+    another order (``load_run`` keeps the file's order)."""
+    from guardid.identify.checks import check_log_robot
+
+    joints = getattr(description, "joints", None)
+    if run.joint_names is None or joints is None:
+        return run
+    if tuple(run.joint_names) == tuple(j.name for j in joints):
+        return run
+    return replace(check_log_robot(replace(run, robot_name=None), description,
+                                   "the description given"), robot_name=run.robot_name)  # fmt: skip
 
 
 def _segments(runs, options):
