@@ -361,3 +361,14 @@ def test_cv_with_an_output_is_refused_before_any_work(tmp_path, a_run):
         res = invoke("identify", "--cv", a_run, other, "--method", "ls", "-o", out)
     _one_error(res, 2, "--cv", "-o")
     assert not out.exists() and "held-out run" not in res.stdout
+
+
+@pytest.mark.parametrize("option", ["-o", "--plot", "--report"])
+def test_an_empty_output_name_is_refused(tmp_path, a_run, option):
+    """`-o "$OUT"` with an empty $OUT: identify ran, exit 0, and wrote nothing (an empty
+    name was taken as no output); now one line before any work, and nothing written."""
+    with one_blas_thread():
+        res = invoke("identify", a_run, "--method", "ls", option, "")
+    _one_error(res, 2, option, "empty file name")
+    assert "parameter" not in res.stdout  # refused before the fit
+    assert _files(tmp_path) == {}
