@@ -213,10 +213,9 @@ def identify(runs, description, options: IdentifyOptions | None = None) -> Ident
     effort is motor current in amperes. The options used, cut-off resolved, are in the result.
     """
     options = options or IdentifyOptions()
-    runs = [_in_joint_order(r, description) for r in runs]
+    runs, split = prepared_runs(runs, description, options)
     torque = _effort_is_torque(runs)
     methods = methods_for(options.methods)  # unknown names refused before any work
-    runs, split = _segments(runs, options)
     for check in dict.fromkeys(m.check for m in methods if m.check is not None):
         check(options.methods, runs, description)
     # segments -> conditioned signals -> equation rows, every run on its own, rows stacked
@@ -231,6 +230,18 @@ def identify(runs, description, options: IdentifyOptions | None = None) -> Ident
     if split is not None:
         result.warnings[:0] = split.lines(result.cutoff_hz)
     return result
+
+
+def prepared_runs(runs, description, options: IdentifyOptions | None = None):
+    """(runs, Split or None): what :func:`identify` conditions ``runs`` as: each guardid
+    log's columns in ``description``'s joint order, the runs split at their long gaps
+    (unless the caller split them). For callers that condition the same runs again
+    (the consistent fit)."""
+    options = options or IdentifyOptions()
+    runs = [_in_joint_order(r, description) for r in runs]
+    if not runs:
+        return runs, None
+    return _segments(runs, options)
 
 
 def _in_joint_order(run, description):
