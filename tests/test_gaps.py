@@ -215,3 +215,26 @@ def test_a_run_with_no_stretch_long_enough_names_the_file(gap_guard_captures, tm
     lines = res.stderr.splitlines()
     assert len(lines) == 1 and lines[0].startswith("guardid: error: ") and "short.csv" in lines[0]
     assert not (tmp_path / "p.yaml").exists()
+
+
+def test_the_python_api_splits_a_long_gap_as_the_command_does(gap200_log):
+    """identify(runs, ...) is the command's pipeline: in the acceleration form (which bridges
+    what it is given) the 200-tick gap must split the run, be named, and leave the truth
+    within 3 std (bridged with no word: ZZ2R and MX2R 4.2 std off, Fc1 3.6)."""
+    from guardid.conditioning.options import ConditioningOptions
+    from guardid.dynamics import build_model
+    from guardid.identify import IdentifyOptions, identify, load_run
+    from guardid.robot import load_robot
+
+    acceleration = ConditioningOptions(equation="acceleration")
+    options = IdentifyOptions(methods=("wls",), conditioning=acceleration)
+    with one_blas_thread(), pytest.warns(Warning, match="footer"):
+        result = identify([load_run(str(gap200_log))], load_robot("guard"), options)
+    gap = [w for w in result.warnings if re.search(r"gap at [0-9.]+ s: 200 ticks", w)]
+    assert len(gap) == 1, result.warnings
+    model = build_model(load_robot("guard"))  # the simulator's robot: the truth
+    truth = dict(zip(model.base.names, model.base.values(model.params), strict=True))
+    wls = result.results["wls"]
+    off = {n: abs(v - truth[n]) / s for n, v, s in zip(result.names, wls.theta, wls.std,
+                                                         strict=True)}  # fmt: skip
+    assert max(off.values()) < 3.0, off

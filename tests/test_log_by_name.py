@@ -217,3 +217,36 @@ def test_a_robot_with_two_joints_of_one_name_is_refused(tmp_path):
     res = invoke("capture", "--robot", robot, "--trajectory", out, "--duration", 1, "-o",
                  tmp_path / "run.csv")  # fmt: skip
     _one_line_error(res, 2, ["twopans.yaml", "joints[1].name"], tmp_path / "run.csv")
+
+
+def test_the_python_api_reads_the_columns_by_name_too(capture, intact, tmp_path):
+    """identify(runs, ...) on load_run(path) (README's Python API): a log whose counts_*
+    columns (and so its joint order) are swapped with their names holds the same data, so
+    the intact result; load_run keeps the file's order and identify took it as the
+    description's (tilt's data as pan's: parameters tens of std off, exit 0)."""
+    from guardid.identify import IdentifyOptions, identify
+
+    log = tmp_path / "swapped.csv"
+    log.write_text(swapped(capture.read_text(), "counts_pan", "counts_tilt", names_too=True))
+    run = load_run(str(log))
+    assert run.joint_names == ("tilt", "pan")  # the file's order: the case this test is for
+    with one_blas_thread():
+        result = identify([run], load_robot("guard"), IdentifyOptions(methods=("wls",)))
+    assert np.allclose(result.results["wls"].theta, intact["wls"], rtol=1e-9, atol=0)
+
+
+def test_the_consistent_fit_of_the_python_api_reads_by_name_too(capture, tmp_path):
+    """identify_consistent(runs, ...) conditions the runs again for the consistent fit:
+    the same joint order as identify's (it used the file's: tilt's data as pan's)."""
+    from guardid.identify import IdentifyOptions
+    from guardid.physical.report import identify_consistent
+
+    log = tmp_path / "swapped.csv"
+    log.write_text(swapped(capture.read_text(), "counts_pan", "counts_tilt", names_too=True))
+    options = IdentifyOptions(methods=("ls",))
+    guard = load_robot("guard")
+    with one_blas_thread():
+        swapped_fit = identify_consistent([load_run(str(log))], guard, options)[0]
+        intact_fit = identify_consistent([load_run(str(capture))], guard, options)[0]
+    got, want = (r.results["consistent"].theta for r in (swapped_fit, intact_fit))
+    assert np.allclose(got, want, rtol=1e-9, atol=0)

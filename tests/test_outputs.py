@@ -346,3 +346,29 @@ def test_capture_room_estimate_covers_a_real_row(a_run):
     assert len(rows) > 600
     widest = max(len(x.encode()) for x in rows)
     assert widest + 8 <= ROW_BYTES_BASE + 2 * ROW_BYTES_PER_JOINT  # + room for longer ticks
+
+
+def test_cv_with_an_output_is_refused_before_any_work(tmp_path, a_run):
+    """identify --cv prints the held-out table only: -o / --plot / --report with it were
+    accepted and silently never written (exit 0, no file)."""
+    out = tmp_path / "p.yaml"
+    with one_blas_thread():
+        other = tmp_path / "seed5.csv"  # a second run of the same robot
+        traj = Path(a_run).parent / "traj.yaml"
+        res = invoke("capture", "--port", "sim://guard?seed=5", "--trajectory", traj,
+                     "--duration", 10, "--quiet", "-o", other)  # fmt: skip
+        assert res.exit_code == 0, res.output
+        res = invoke("identify", "--cv", a_run, other, "--method", "ls", "-o", out)
+    _one_error(res, 2, "--cv", "-o")
+    assert not out.exists() and "held-out run" not in res.stdout
+
+
+@pytest.mark.parametrize("option", ["-o", "--plot", "--report"])
+def test_an_empty_output_name_is_refused(tmp_path, a_run, option):
+    """`-o "$OUT"` with an empty $OUT: identify ran, exit 0, and wrote nothing (an empty
+    name was taken as no output); now one line before any work, and nothing written."""
+    with one_blas_thread():
+        res = invoke("identify", a_run, "--method", "ls", option, "")
+    _one_error(res, 2, option, "empty file name")
+    assert "parameter" not in res.stdout  # refused before the fit
+    assert _files(tmp_path) == {}

@@ -37,6 +37,7 @@ def test_the_url_options():
     [
         ("start=-1", "start"),
         ("start=nan", "start"),
+        ("start=1e30", "start"),  # beyond the telemetry's 32-bit counts (was a traceback)
         ("start=x", "start"),
         ("supply=0.6", "supply"),
         ("supply=-0.01", "supply"),

@@ -190,7 +190,8 @@ class _MethodOption(click.Option):
     "--cv",
     is_flag=True,
     help="Leave-one-run-out cross-validation over the LOGs (at least 2): fit on all but one, "
-    "score the held-out run (stacked relative rms error), print the table.",
+    "score the held-out run (stacked relative rms error), print the table (writes no -o, "
+    "--plot or --report).",
 )
 @force_option(
     "existing output files: -o, --plot, --report",
@@ -215,6 +216,11 @@ def identify(
     from guardid.identify import identify as run_identify
     from guardid.identify.report import plot, table, to_yaml_dict
 
+    if cv and (output or plot_path or report_path):  # --cv prints its table and fits nothing
+        given = [o for o, p in (("-o", output), ("--plot", plot_path), ("--report", report_path))
+                 if p]  # fmt: skip
+        raise ConfigError(f"--cv writes no {'/'.join(given)}: it prints the held-out error "
+                          "table only (identify without --cv writes them)")  # fmt: skip
     _check_outputs(
         log, robot, foreign, force, output=output, plot_path=plot_path, report_path=report_path
     )

@@ -72,6 +72,8 @@ def check_output(
     read-only file system). ``output`` None: nothing to check."""
     if output is None:
         return
+    if str(output) == "":  # an empty $OUT: would be taken as "no output" and write nothing
+        raise ConfigError(f"{option} '': an empty file name; give a file name")
     for name, path in inputs:
         if path is not None and same_file(output, path):
             raise ConfigError(

@@ -24,7 +24,7 @@ _FAULTS = {
     "payload_time": "attach the payload at this simulated time [s]",
     "payload_mass": "payload mass [kg]",
     "payload_com": "payload centre of mass x,y,z [m]",
-    "start": "start each joint at a seeded point within +-this many encoder counts",
+    "start": "start each joint at a seeded point within +-this many encoder counts (<= 2^30)",
     "supply": "this run's supply voltage within +-this fraction of nominal (seeded)",
     "ripple": "supply ripple from tick to tick, std as a fraction of the supply (seeded)",
 }

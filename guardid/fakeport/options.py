@@ -10,7 +10,8 @@ sensor noise draws stay those of the same seed without them):
 
 * ``phase=1``: each joint starts at a random point within its first encoder count;
 * ``start=C``: each joint starts at a random point within +-C encoder counts of zero
-  (real-valued, so the encoder phase too; clipped into the joint's limits; not with phase=1);
+  (real-valued, so the encoder phase too; clipped into the joint's limits; not with phase=1;
+  C at most :data:`START_MAX_COUNTS`);
 * ``supply=F``: the supply voltage of this run is the robot's nominal one times (1 + u), u
   uniform in [-F, F] (a bench supply's setting, a battery's charge);
 * ``ripple=F``: and varies from tick to tick by a factor (1 + F z), z standard normal, the
@@ -122,6 +123,11 @@ def _mcu(text: str) -> str:
     return text
 
 
+START_MAX_COUNTS = 2.0**30
+"""Largest ``start`` [counts]: the telemetry carries positions as 32-bit signed counts, and
+an unlimited joint started beyond that range could not be reported (half the range, so the
+motion has room)."""
+
 _PARSERS: dict[str, Callable[[str], object]] = {
     "seed": _seed,
     "pacing": _pacing,
@@ -137,7 +143,7 @@ _PARSERS: dict[str, Callable[[str], object]] = {
     "mcu": _mcu,
     "upstream": _bool,
     "phase": _bool,
-    "start": _float(0.0),
+    "start": _float(0.0, hi=START_MAX_COUNTS),
     "supply": _float(0.0, hi=0.5),
     "ripple": _float(0.0, hi=0.2),
 }

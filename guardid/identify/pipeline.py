@@ -5,9 +5,10 @@ rows (:func:`~guardid.identify.rows.stacked_rows`) -> the estimators named in th
 (:mod:`guardid.identify.methods`, registered by name) -> result (:class:`Identification`:
 estimates with their uncertainty, checks, the motors' electrical parameters).
 
-Time comes from the tick column; lost ticks are gaps, which the conditioning stage
-bridges by resampling. Everything :func:`identify` is told besides the data is one
-:class:`IdentifyOptions`.
+Time comes from the tick column; lost ticks are gaps: a run is split at a long one
+(:mod:`guardid.identify.segments`, said in the warnings), shorter ones are bridged (the
+acceleration form) or cut (the momentum form) by the conditioning stage. Everything
+:func:`identify` is told besides the data is one :class:`IdentifyOptions`.
 """
 
 from __future__ import annotations
@@ -199,17 +200,20 @@ def run_from_arrays(
 def identify(runs, description, options: IdentifyOptions | None = None) -> Identification:
     """Identify the base parameters of ``description`` from ``runs`` (a list of :class:`Run`).
 
-    Each run is conditioned on its own and the equation rows are stacked (one fit,
-    :func:`stacked_rows`; the cut-off, when not given in ``options.conditioning``, is chosen
-    by cross-validation, informed by the first run's ``highest_harmonic_hz``); measured
-    velocities (``Run.qd``) replace the differentiated positions when every run has them.
+    A run is split at its long gaps (:mod:`guardid.identify.segments`, named in the
+    warnings) unless the caller split it. Each run is conditioned on its own and the
+    equation rows are stacked (one fit, :func:`stacked_rows`; the equation form and the
+    cut-off, when not given in ``options.conditioning``: the momentum form at 2 x the first
+    run's ``highest_harmonic_hz`` for motor-current logs on a tick grid, else the
+    acceleration form, its cut-off chosen by cross-validation); measured velocities
+    (``Run.qd``) replace the differentiated positions when every run has them.
     Then every method of ``options.methods`` (:mod:`guardid.identify.methods`) is fitted on
     the rows, and the motors' R and Ke are estimated from every run's voltage and ticks
     together (a motor-equation row never spans two runs) when all runs have both and the
     effort is motor current in amperes. The options used, cut-off resolved, are in the result.
     """
     options = options or IdentifyOptions()
-    runs = list(runs)
+    runs, split = prepared_runs(runs, description, options)
     torque = _effort_is_torque(runs)
     methods = methods_for(options.methods)  # unknown names refused before any work
     for check in dict.fromkeys(m.check for m in methods if m.check is not None):
@@ -222,7 +226,56 @@ def identify(runs, description, options: IdentifyOptions | None = None) -> Ident
     )  # fmt: skip
     fit_rows = _fit_rows(rows, runs, description, options, torque)
     results = _fit_all(methods, fit_rows)  # the estimators, in the order asked
-    return _result_of(fit_rows, results, options, torque)  # checks, warnings, motors
+    result = _result_of(fit_rows, results, options, torque)  # checks, warnings, motors
+    if split is not None:
+        result.warnings[:0] = split.lines(result.cutoff_hz)
+    return result
+
+
+def prepared_runs(runs, description, options: IdentifyOptions | None = None):
+    """(runs, Split or None): what :func:`identify` conditions ``runs`` as: each guardid
+    log's columns in ``description``'s joint order, the runs split at their long gaps
+    (unless the caller split them). For callers that condition the same runs again
+    (the consistent fit)."""
+    options = options or IdentifyOptions()
+    runs = [_in_joint_order(r, description) for r in runs]
+    if not runs:
+        return runs, None
+    return _segments(runs, options)
+
+
+def _in_joint_order(run, description):
+    """``run`` with its per-joint columns in ``description``'s joint order, its angles
+    checked against its counts (:func:`~guardid.identify.checks.check_log_robot`; a copy,
+    the robot's name not compared), when a guardid log's columns name other joints or
+    another order (``load_run`` keeps the file's order)."""
+    from guardid.identify.checks import check_log_robot
+
+    joints = getattr(description, "joints", None)
+    if run.joint_names is None or joints is None:
+        return run
+    if tuple(run.joint_names) == tuple(j.name for j in joints):
+        return run
+    return replace(check_log_robot(replace(run, robot_name=None), description,
+                                   "the description given"), robot_name=run.robot_name)  # fmt: skip
+
+
+def _segments(runs, options):
+    """(runs, Split or None): the runs split at their long gaps
+    (:func:`~guardid.identify.segments.split_runs`, the limit from the given cut-off or the
+    first run's harmonic), unless the caller split them already (a segment among them:
+    ``Run.source`` set) or none has a long gap. GuardidError when no segment is left."""
+    from guardid.identify.segments import split_runs
+
+    if any(getattr(r, "source", None) for r in runs):
+        return runs, None
+    cutoff = options.conditioning.cutoff_hz if options.conditioning is not None else None
+    split = split_runs(runs, cutoff, runs[0].highest_harmonic_hz)
+    if not split.gaps and not split.dropped:
+        return runs, None
+    if not split.runs:
+        raise GuardidError("; ".join(split.lines()))
+    return split.runs, split
 
 
 def _effort_is_torque(runs) -> bool:

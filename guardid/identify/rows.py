@@ -433,9 +433,12 @@ def stacked_rows(
     """Rows of several runs (t [s] (N,), q (N, n), effort (N, n)), each conditioned on its
     own under the same ``options`` and stacked (times shifted so that they keep increasing).
 
-    ``options.cutoff_hz`` None: chosen by cross-validation over the runs
-    (:func:`guardid.identify.cutoff.choose_cutoff_cv`, informed by ``highest_harmonic_hz``
-    [Hz], the excitation's highest harmonic from a guardid log header).
+    ``options.cutoff_hz`` None: in the momentum form 2 x ``highest_harmonic_hz`` [Hz] (the
+    excitation's highest harmonic from a guardid log header; else 2 x the positions'
+    bandwidth), at least 2 Hz (:func:`guardid.conditioning.momentum.momentum_cutoff`); in the
+    acceleration form chosen by cross-validation over the runs
+    (:func:`guardid.identify.cutoff.choose_cutoff_cv`, informed by ``highest_harmonic_hz``).
+    The form: ``options.equation``, or :func:`resolve_equation`'s default.
     ``effort_is_torque``: the effort is measured joint torque (gain 1, instantaneous
     samples); ``in_current_units``: no current-to-torque gain (y in the effort's unit).
     """

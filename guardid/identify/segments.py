@@ -27,7 +27,11 @@ ms, highest harmonic 0.5 Hz, highest cut-off candidate 8 Hz) that is 4 lost tick
 **Which cut-off.** The cut-off is chosen by cross-validation after the runs are split (every
 candidate must see the same runs), so the limit uses the *highest* candidate
 (:func:`highest_cutoff_hz`: the strictest limit, any candidate's bridges are then within
-the error above), or the cut-off given with ``--cutoff`` / stored in a params file.
+the error above), or the cut-off given with ``--cutoff`` / stored in a params file. This is
+the acceleration form's rule: the momentum form (the default for guardid logs) bridges no
+gap at all (its filter's stretch ends at every lost tick, :mod:`guardid.conditioning.momentum`),
+so there the split changes little but the gap's line, whose limit and cut-off are still this
+rule's, not the momentum form's own cut-off.
 
 A gap longer than the limit splits the run into segments ``run.csv[1]``, ``run.csv[2]``, ...
 treated as separate runs are (each filtered, differentiated and its ends cut on its own;
