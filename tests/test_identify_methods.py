@@ -143,3 +143,29 @@ def test_options_are_immutable_values():
         o.rls_lambda = 0.5
     assert IdentifyOptions() == IdentifyOptions()
     assert IdentifyOptions(methods="ls, wls").methods == ("ls", "wls")  # not ('l', 's', ...)
+
+
+def test_the_rows_are_made_in_the_form_every_method_asks_for(registry, gap_guard_captures):
+    """A guardid log's default form is the momentum form; a method that fits only in the
+    acceleration form (as iv and didim do), asked for alone, gets rows in that form (and the
+    params file says so); beside a method without a form of its own, the momentum form
+    stays."""
+    from guardid.identify import load_run
+    from guardid.robot import load_robot
+
+    class AccelerationOnly(Method):
+        summary = "least squares in the acceleration form, for the test"
+        equation = "acceleration"
+
+        def fit(self, rows):
+            return MethodFit.of(rows.ls)
+
+    register("accel-only")(AccelerationOnly)
+    runs, guard = [load_run(gap_guard_captures[1])], load_robot("guard")
+
+    def form(*names):
+        return identify(runs, guard, IdentifyOptions(methods=names)).conditioning.equation
+
+    assert form("ls") == "momentum"
+    assert form("accel-only") == "acceleration"
+    assert form("ls", "accel-only") == "momentum"

@@ -109,11 +109,14 @@ class Method:
     """A registered estimator: ``fit(rows)`` -> :class:`MethodFit`. ``name`` is set by
     :func:`register`; ``summary`` is its ``--method`` help; ``check(methods, runs,
     description)`` (a plain function, optional) refuses unusable input before conditioning
-    (methods sharing one check function are checked once)."""
+    (methods sharing one check function are checked once); ``equation`` (optional): the
+    equation form it fits in (``"acceleration"`` for iv and didim): when every method asked
+    for names the same form and the options name none, the rows are made in it."""
 
     name: str = ""
     summary: str = ""
     check: Callable | None = None
+    equation: str | None = None  # the equation form it fits in (None: the rows' own)
 
     def fit(self, rows: FitRows) -> MethodFit:
         raise NotImplementedError
@@ -275,6 +278,7 @@ class _ClosedLoop(Method):
     """IV and DIDIM (:mod:`guardid.closedloop`): simulate the closed loop of each run."""
 
     check = staticmethod(_check_closed_loop)
+    equation = "acceleration"
 
     def fit(self, rows):
         from guardid.closedloop import fit_closed_loop

@@ -218,9 +218,18 @@ def identify(runs, description, options: IdentifyOptions | None = None) -> Ident
     methods = methods_for(options.methods)  # unknown names refused before any work
     for check in dict.fromkeys(m.check for m in methods if m.check is not None):
         check(options.methods, runs, description)
+    conditioning = options.conditioning
+    forms = {m.equation for m in methods}
+    if (
+        len(forms) == 1
+        and None not in forms
+        and (conditioning or ConditioningOptions()).equation is None
+    ):
+        # every method fits one form (iv, didim: acceleration): the rows are made in it
+        conditioning = replace(conditioning or ConditioningOptions(), equation=forms.pop())
     # segments -> conditioned signals -> equation rows, every run on its own, rows stacked
     rows = stacked_rows(
-        [_signals(r, runs) for r in runs], description, options.conditioning,
+        [_signals(r, runs) for r in runs], description, conditioning,
         in_current_units=options.in_current_units, effort_is_torque=torque,
         highest_harmonic_hz=runs[0].highest_harmonic_hz,
     )  # fmt: skip
