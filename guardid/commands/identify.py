@@ -236,7 +236,6 @@ def identify(
     run, log = runs[0], logs[0]
     if len({r.torque for r in runs}) > 1:
         raise ConfigError(f"{logs[-1]}: mixes measured torque and motor current with {log}")
-    methods = tuple(m.strip() for m in method.split(",") if m.strip())
     from guardid.identify.methods import methods_for
 
     methods_for(methods)  # an unknown method is an option error, before any log is named
@@ -249,10 +248,6 @@ def identify(
     if cv:
         _cross_validate(logs, runs, description, options)
         return
-    from guardid.identify.segments import split_runs
-
-    whole, split = runs, split_runs(runs, cutoff, run.highest_harmonic_hz)
-    runs = split.runs  # long gaps split a run: its segments are conditioned as runs are
     forked = None  # the tracker's replay on another core while the batch fit runs
     if plot_path is None and report_path is None:
         from guardid.online.offline import start_tracking
@@ -261,8 +256,10 @@ def identify(
     status.stage("conditioning and fitting")
     from guardid.identify.checks import call_naming_logs
 
-    result = call_naming_logs(logs, run_identify, runs, description, options)
-    result.warnings[:0] = split.lines(result.cutoff_hz)
+    result = call_naming_logs(logs, run_identify, runs, description, options)  # names gaps
+    from guardid.identify.pipeline import prepared_runs
+
+    whole, (runs, _) = runs, prepared_runs(runs, description, options)  # as identify split them
     if result.untrusted and not force:
         raise UntrustedResult(
             f"{log}: identification cannot be trusted: {'; '.join(result.untrusted)} "
