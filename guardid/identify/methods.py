@@ -284,7 +284,7 @@ class _ClosedLoop(Method):
         from guardid.closedloop import fit_closed_loop
         from guardid.identify.pipeline import closed_loop_rows
 
-        first = getattr(rows.rows, "acceleration_rows", None) is None
+        first = rows.rows.acceleration_rows is None
         own = closed_loop_rows(rows)  # the acceleration form (module docstring there)
         runs = [(r.t, r.q, r.current) for r in rows.runs]
         per_run = [[getattr(r, k) for r in rows.runs] for k in ("ticks", "setpoint", "voltage")]

@@ -355,7 +355,7 @@ def closed_loop_rows(rows: FitRows):
     call of :func:`identify` (kept on ``rows.rows``)."""
     if rows.rows.options.equation == "acceleration":
         return rows.rows
-    cached = getattr(rows.rows, "acceleration_rows", None)
+    cached = rows.rows.acceleration_rows
     if cached is None:
         options = rows.options.conditioning or ConditioningOptions()
         options = replace(options, equation="acceleration", order=None)

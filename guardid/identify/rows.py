@@ -71,7 +71,9 @@ class Rows:
     ``options``: the options used, cut-off resolved; ``choice``: the cut-off's
     cross-validation (None when given); ``warnings``: doubts about the conditioning;
     ``runs``: per run its own conditioned signals (the momentum form: what
-    :func:`momentum_rows_of` needs).
+    :func:`momentum_rows_of` needs); ``acceleration_rows``: the same runs in the
+    acceleration form, made once when a method fits only in it (iv, didim:
+    :func:`guardid.identify.pipeline.closed_loop_rows`), else None.
     """
 
     cond: object
@@ -81,6 +83,7 @@ class Rows:
     choice: CutoffChoice | None = None
     warnings: list[str] = field(default_factory=list)
     runs: list = field(default_factory=list)
+    acceleration_rows: Rows | None = None
 
     def __iter__(self):  # (cond, A, y), as before
         return iter((self.cond, self.A, self.y))
