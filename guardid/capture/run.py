@@ -72,6 +72,7 @@ def capture(
     stop: StopRequest | None = None,
     overwrite: bool = False,
     until: Callable[[], bool] | None = None,
+    on_record: Callable[..., None] | None = None,
 ) -> CaptureResult:
     """Capture ``duration_s`` seconds of ``trajectory``; write ``log_path``.
 
@@ -82,6 +83,8 @@ def capture(
     ``on_row`` (if given) is called with every logged row as it arrives: time [s], joint
     angles (n,) [rad], period-mean motor voltages (n,) [V] and currents (n,) [A] (online
     identification, :mod:`guardid.online`); it runs in the capture loop, so it must be fast.
+    ``on_record`` (if given) is called with every row just written, with the arguments of
+    :meth:`guardid.log.LogWriter.write_row` (``capture --stream``); fast, never raising.
     ``stop`` (if given) is checked at every tick: once set, the capture ends as
     'interrupted' (the robot idle, the footer written). ``until`` (if given) is asked after
     every row's ``on_row``: True ends the capture early as 'identified' (``capture
@@ -125,6 +128,8 @@ def capture(
             amps = np.asarray(t.current_ma) * 1e-3
             t_s = (t.tick - first_tick) * period
             writer.write_row(t.tick, t_s, counts, q, volts, amps, sp, t.status)
+            if on_record is not None:
+                on_record(t.tick, t_s, counts, q, volts, amps, sp, t.status)
             if on_row is not None:
                 on_row(t_s, q, volts, amps)
             sq_err += (sp - q) ** 2

@@ -25,4 +25,6 @@ COMMANDS = [
      "Simulate EXPERIMENT, run the estimators, print our numbers beside the paper's."),
     ("export", "guardid.commands.export", "export",
      "Write the identified robot (PARAMS from identify --consistent) as URDF and/or MJCF."),
+    ("convert", "guardid.commands.convert", "convert",
+     "Write the capture log LOG as an MCAP file for Foxglove and PlotJuggler."),
 ]  # fmt: skip

@@ -83,9 +83,20 @@ def _load_trajectory(path: str):
     "scale), at least one trajectory period; --duration / --periods is then the cap "
     f"[default cap: {UNTIL_STD_CAP_S:g} s]. Exit 4 when the cap comes first.",
 )
+@click.option(
+    "--stream",
+    "stream_url",
+    default=None,
+    metavar="udp://HOST:PORT",
+    help="Also send every row, as it is logged, as one JSON datagram to HOST:PORT "
+    "(PlotJuggler: Streaming > UDP Server, JSON, 'use field as timestamp' = timestamp; "
+    "its default port is 9870). Fields group per joint: timestamp [s], tick, status, "
+    "<joint>/q_rad, setpoint_rad, v_V, i_A, counts. Non-blocking: a datagram that cannot "
+    "be sent is counted and skipped, never slowing the capture. docs/LIVE.md.",
+)
 def capture(
     port, baud, robot, trajectory_path, duration, periods, timeout, output, force, quiet,
-    online, online_effort, until_std,
+    online, online_effort, until_std, stream_url,
 ):  # fmt: skip
     """Run the trajectory on the robot in closed loop and record telemetry to OUTPUT.
 
@@ -101,9 +112,9 @@ def capture(
     stop = StopRequest()
     with stop.installed():
         try:
-            result, tracker, live = _capture(
+            result, tracker, live, stream = _capture(
                 port, baud, robot, trajectory_path, duration, periods, timeout, output,
-                force, quiet, online, online_effort, stop, until_std,
+                force, quiet, online, online_effort, stop, until_std, stream_url,
             )  # fmt: skip
         except CaptureStopped:
             end_line()
@@ -122,6 +133,8 @@ def capture(
         f"CRC errors {st['crc_errors']}, framing errors {st['framing_errors']}, "
         f"sequence gaps {st['seq_gaps']}, rms tracking error {errs}"
     )
+    if stream is not None:
+        click.echo(stream.summary())
     if tracker is not None:
         _online_summary(tracker, output, force)
     if result.ended == "interrupted":
@@ -135,10 +148,11 @@ def capture(
 
 def _capture(
     port, baud, robot, trajectory_path, duration, periods, timeout, output, force, quiet,
-    online, online_effort, stop, until_std=None,
+    online, online_effort, stop, until_std=None, stream_url=None,
 ):  # fmt: skip
     """Check everything, then capture; return (CaptureResult, online tracker or None,
-    :class:`guardid.online.information.UntilStd` or None)."""
+    :class:`guardid.online.information.UntilStd` or None, :class:`guardid.live.udp.UdpStream`
+    or None)."""
     from guardid.capture import capture as run_capture
     from guardid.capture.checks import check_info, check_trajectory
     from guardid.capture.stop import StopAwarePort
@@ -151,6 +165,11 @@ def _capture(
             "--port: empty (an unset variable?); give a serial device such as /dev/ttyUSB0, "
             "or leave --port out for the simulated robot"
         )
+    target = None
+    if stream_url is not None:
+        from guardid.live.udp import parse_stream_url
+
+        target = parse_stream_url(stream_url)
     inputs = [("--trajectory", trajectory_path), ("--robot", robot_file(robot))]
     check_output(output, inputs, force=force)
     description = load_robot(robot)
@@ -181,8 +200,14 @@ def _capture(
                 err=True,
             )
     port_url = f"sim://{robot}" if port is None else port
+    stream = _stream(target, description)
     stop.check()
-    serial_port = open_port(port_url, baud)
+    try:
+        serial_port = open_port(port_url, baud)
+    except BaseException:
+        if stream is not None:
+            stream.close()
+        raise
     session = Session(StopAwarePort(serial_port, stop), timeout_s=timeout)
     try:
         try:
@@ -216,10 +241,22 @@ def _capture(
             stop=stop,
             overwrite=force,
             until=None if live is None else live.done,
+            on_record=None if stream is None else stream.send_row,
         )
     finally:
         serial_port.close()
-    return result, tracker, live
+        if stream is not None:
+            stream.close()
+    return result, tracker, live, stream
+
+
+def _stream(target, description):
+    """The --stream sender to ``target`` (None: no --stream)."""
+    if target is None:
+        return None
+    from guardid.live.udp import UdpStream
+
+    return UdpStream(target, [j.name for j in description.joints])
 
 
 ROW_BYTES_BASE, ROW_BYTES_PER_JOINT = 30, 60
