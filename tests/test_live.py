@@ -172,9 +172,11 @@ def _mcap(path: Path):
     from mcap.reader import make_reader  # the test extra installs it
 
     with open(path, "rb") as fh:
-        reader = make_reader(fh)
+        reader = make_reader(fh, validate_crcs=True)
         messages = list(reader.iter_messages(log_time_order=False))
         metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+        summary = reader.get_summary()  # the index viewers seek with
+    assert summary.statistics.message_count == len(messages)
     return messages, metadata
 
 

@@ -201,8 +201,8 @@ def _capture(
             )
     port_url = f"sim://{robot}" if port is None else port
     stream = _stream(target, description)
-    stop.check()
     try:
+        stop.check()
         serial_port = open_port(port_url, baud)
     except BaseException:
         if stream is not None:
