@@ -25,8 +25,9 @@ from guardid.commands.outputs import force_option
 def convert(log, mcap_path, force):
     """Write the capture log LOG as an MCAP file for Foxglove and PlotJuggler.
 
-    LOG is any log guardid reads (a capture, or a foreign log in guardid's columns). The
-    output is written to a temporary file and renamed into place when complete.
+    LOG is a guardid log (a capture, or any log in guardid's columns with a time_s column,
+    the messages' time). The output is written to a temporary file and renamed into place
+    when complete.
     """
     from guardid.commands.outputs import check_output, replacing
     from guardid.live.mcap_log import TOPIC, require_mcap, write_mcap
