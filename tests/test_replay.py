@@ -118,8 +118,8 @@ def test_simulate_params_runs_the_twin(noise_free_replay, tmp_path):
 
 @pytest.mark.parametrize(
     ("query", "needle"),
-    [("method=wls", "method: only with params="),
-     ("params=p.yaml&payload_time=1&payload_mass=1", "payload_time: not with params=")],
+    [("method=wls", "method: only with params"),
+     ("params=p.yaml&payload_time=1&payload_mass=1", "payload_time: not with params")],
 )  # fmt: skip
 def test_sim_url_twin_options_refused(query, needle):
     from guardid.fakeport.options import SimUrlError, parse_sim_url

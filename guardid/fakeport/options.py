@@ -189,9 +189,9 @@ def parse_options(
     if "mcu" in values and values.get("firmware") != "avr":
         raise SimUrlError(f"{label('mcu')}: only with firmware=avr")
     if "method" in values and "params" not in values:
-        raise SimUrlError(f"{label('method')}: only with params=")
+        raise SimUrlError(f"{label('method')}: only with {label('params')}")
     if "params" in values and "payload_time" in values:
-        raise SimUrlError(f"{label('payload_time')}: not with params= (a twin's rigid body is "
+        raise SimUrlError(f"{label('payload_time')}: not with {label('params')} (a twin's body is "
                           "its base parameters; a payload changes the full ones)")  # fmt: skip
     if values.get("start") and values.get("phase"):
         raise SimUrlError(f"{label('start')}: not with phase=1 (start includes the encoder phase)")
