@@ -50,3 +50,40 @@ def seed001_table1_report():
     from guardid.reproduce import seed001_table1
 
     return seed001_table1.run(0)
+
+
+REPLAY_CAPTURE_S = 8
+
+
+@pytest.fixture(scope="session")
+def noise_free_replay(tmp_path_factory) -> dict:
+    """Paths for the replay and twin tests, made once per session (about 1 s of CPU): 8 s
+    lock-step captures on the unoptimised default excitation of ``sim://guard?noise=0``
+    ('yaml'), of its twin from the robot YAML's own base parameters ('twin_true', with
+    'true': that reference values file) and of a twin 30 % heavier and stickier
+    ('twin_off', 'off': its reference file, every base parameter x 1.3)."""
+    import yaml
+
+    from guardid.dynamics import build_model
+    from guardid.robot import load_robot
+
+    d = tmp_path_factory.mktemp("noise_free_replay")
+    model = build_model(load_robot("guard"))
+    values = (float(x) for x in model.base.values(model.params))
+    true = dict(zip(model.base.names, values, strict=True))
+    out = {"traj": d / "traj.yaml", "true": d / "true.yaml", "off": d / "off.yaml"}
+    for key, scale in (("true", 1.0), ("off", 1.3)):
+        values = {k: v * scale for k, v in true.items()}
+        out[key].write_text(yaml.safe_dump({"guardid-reference": 1, "label": key,
+                                            "values": values}))  # fmt: skip
+    with one_blas_thread():
+        res = invoke("excite", "--no-optimise", "-o", out["traj"])
+        assert res.exit_code == 0, res.output
+        for key, extra in (("yaml", ""), ("twin_true", f"&params={out['true']}"),
+                           ("twin_off", f"&params={out['off']}")):  # fmt: skip
+            out[key] = d / f"{key}.csv"
+            port = f"sim://guard?noise=0{extra}"
+            res = invoke("capture", "--port", port, "--trajectory", out["traj"], "--duration",
+                         REPLAY_CAPTURE_S, "--quiet", "-o", out[key])  # fmt: skip
+            assert res.exit_code == 0, res.output
+    return out

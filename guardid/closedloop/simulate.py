@@ -235,13 +235,41 @@ def check_simulable(description) -> None:
             )
 
 
-def simulate(description, model, theta, ticks, setpoint_rad, q0_rad, qd0, u0_v=None):
+def start_integral(pid, sp_counts, counts, next_mv) -> int:
+    """The integral [Q16 mV] a :class:`~guardid.firmware.pid.FixedPid` holds after its step
+    at a log's first row, from the outputs the log reports for the rows after it.
+
+    ``sp_counts``, ``counts`` (K,) [counts]: setpoint and position at K rows of consecutive
+    ticks; ``next_mv`` (K,) [mV]: the voltage of the period after each row (the PID's
+    output at it). Row k >= 1 holds out_k = kp e_k + I_0 + ki (e_1 + ... + e_k) +
+    kd (e_k - e_{k-1}) (Q16, e = setpoint - position), so each unsaturated row gives I_0;
+    their mean averages out the PWM's and the voltage sensor's quantisation. None when no
+    row is usable (fewer than two rows, or every output at the supply limit or zero)."""
+    e = np.asarray(sp_counts, dtype=np.int64) - np.asarray(counts, dtype=np.int64)
+    mv = np.asarray(next_mv, dtype=float)
+    if len(e) < 2:
+        return None
+    ki_sum = pid.ki * np.cumsum(e[1:])
+    rest = pid.kp * e[1:] + ki_sum + pid.kd * np.diff(e)
+    usable = (np.abs(mv[1:]) < 0.95 * pid.limit_mv) & (mv[1:] != 0.0)
+    if not np.any(usable):
+        return None
+    i0 = float(np.mean(mv[1:][usable] * 65536.0 - rest[usable]))
+    lim = pid.limit_mv << 16
+    return int(max(-lim, min(lim, round(i0))))
+
+
+def simulate(description, model, theta, ticks, setpoint_rad, q0_rad, qd0, u0_v=None,
+             following=None):  # fmt: skip
     """Joint positions [rad] (N, n) of the closed loop at the log's ``ticks`` (N,).
 
     ``theta`` (b,): every base parameter of ``model``; ``setpoint_rad`` (N, n): the log's
     setpoints (held over unlogged ticks); the simulation starts at the first row from
     ``q0_rad`` (n,) [rad] and ``qd0`` (n,) [rad/s] with the PID's last output ``u0_v`` (n,)
-    [V] (the voltage the log reports for the next period; its integral is set to give it).
+    [V] (the voltage the log reports for the next period; its integral is set to give it,
+    neglecting the derivative term, unless ``following`` is given).
+    ``following``: (counts (K, n), next_v (K, n) [V]) of the log's first K rows (consecutive
+    ticks): the integral is then :func:`start_integral`'s, which keeps the derivative term.
 
     NotSimulable before any step when ``theta`` is not a physical robot's where the motion
     goes (:func:`stiffness_substeps` at the setpoints and the start); SimulationDiverged
@@ -271,6 +299,10 @@ def simulate(description, model, theta, ticks, setpoint_rad, q0_rad, qd0, u0_v=N
         mv = max(-pid.limit_mv, min(pid.limit_mv, int(round(1000.0 * u0[j]))))
         lim = pid.limit_mv << 16
         pid.integral = max(-lim, min(lim, (mv << 16) - pid.kp * e0))
+        if following is not None:
+            k = len(following[0])
+            fitted = start_integral(pid, sp[:k, j], following[0][:, j], 1000.0 * following[1][:, j])
+            pid.integral = pid.integral if fitted is None else fitted
         pid.prev_error = e0
         fw.applied_mv[j] = mv
     rel = np.asarray(ticks, dtype=np.int64) - int(ticks[0])

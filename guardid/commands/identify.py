@@ -395,9 +395,20 @@ def _cross_validate(logs, runs, description, options):
     "predicted effort of the best set, residual spectra (needs matplotlib; an existing file "
     "only with --force).",
 )
+@click.option(
+    "--simulate",
+    is_flag=True,
+    help="Also replay every set, and the robot YAML's own values, through the closed loop "
+    "(the firmware's PID with the robot's pid: gains, motors, stick/slip friction, the set's "
+    "rigid body) with the log's setpoints from its first state, and print the simulation "
+    "error against the measured joint angles: per run and joint, rms and max in degrees and "
+    "encoder counts (--report plots measured and simulated angles). Needs guardid logs with "
+    "setpoints (sp_* columns) and a robot with pid: on every joint.",
+)
 @force_option("an existing --report file")
 @_foreign_options
-def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, force, **foreign):
+def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, force, simulate,
+             **foreign):  # fmt: skip
     """Score parameter sets on runs LOG [LOG ...]: torque prediction error, all joints stacked.
 
     Every set (each method of each params file, each reference values file) is scored under
@@ -421,18 +432,35 @@ def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, force, 
     from guardid.identify.checks import check_cutoff
 
     check_cutoff(cutoff, runs)
+    if simulate:
+        from guardid.replay import check_replayable
+
+        for run in runs:
+            check_replayable(run, description)
     options = v.stored_conditioning(*first) if first else None
     options = (options or v.ConditioningOptions()).with_(
         cutoff_hz=cutoff, parallel_filter_hz=parallel_hz
     )
     sets = [s for path in params_paths for s in v.load_sets(path, description)]
     current_units = bool(first) and first[1].get("torque_unit") not in ("N m", None)
+    if simulate and current_units:
+        unit = first[1].get("torque_unit")
+        raise ConfigError(f"--simulate: {first[0]}: torque_unit {unit}: a set in current "
+                          "units has no rigid body in N m to simulate")  # fmt: skip
     keep = {} if report_path else None
     click.echo(v.validate_runs(runs, log, description, sets, options, current_units, keep=keep))
+    replayed = {} if report_path and simulate else None
+    if simulate:
+        from guardid.replay import replay_sets, table, yaml_set
+
+        scores = replay_sets(runs, log, description, [yaml_set(description), *sets], replayed)
+        click.echo(table(scores, description))
+        if replayed is not None:
+            replayed["scores"] = scores
     if report_path:
         from guardid.commands.outputs import write_text
         from guardid.report.cli import validate_page
 
-        page = validate_page(description, log, sets, keep, current_units)
+        page = validate_page(description, log, sets, keep, current_units, runs, replayed)
         write_text(report_path, page, "--report")
         click.echo(f"report written to {report_path}")

@@ -58,19 +58,24 @@ class Pid:
         return max(-self.limit, min(self.limit, out))
 
 
-def run(robot: str, duration: float, seed: int, payload, noise: bool = True):
-    """Simulate; yield (sample, setpoint) per tick. Raises GuardidError subclasses."""
+def run(robot: str, duration: float, seed: int, payload, noise: bool = True, twin=None):
+    """Simulate; yield (sample, setpoint) per tick. Raises GuardidError subclasses.
+    ``twin``: a :class:`guardid.twin.Twin` run instead of the description's rigid body."""
     import numpy as np
 
     from guardid.plant import Plant, PlantError
     from guardid.robot import load_robot
 
-    description = load_robot(robot)
+    description = load_robot(robot) if isinstance(robot, str) else robot
     joints = getattr(description, "joints", None)
     if not joints or any(j.drive is None or j.pid is None for j in joints):
         raise PlantError(f"{description.name}: simulate needs a drive and PID gains per joint")
     ref = SumOfSines(description)
-    plant = Plant(description, seed=seed, noise=noise, payload=payload, q0=ref(0.0))
+    if twin is not None:
+        plant = Plant(twin.description, model=twin.model, substeps=twin.substeps, seed=seed,
+                      noise=noise, q0=ref(0.0))  # fmt: skip
+    else:
+        plant = Plant(description, seed=seed, noise=noise, payload=payload, q0=ref(0.0))
     pids = [Pid(j.pid, plant.dt, j.drive.supply_voltage) for j in joints]
     volts = [0.0] * len(joints)
     for _ in range(int(round(duration / plant.dt))):
@@ -104,11 +109,22 @@ def _columns(n: int) -> list[str]:
 @click.option("--payload-com", default="0.12,0.02,0", show_default=True,
               help="Payload centre of mass in the last link frame [m], x,y,z.")  # fmt: skip
 @click.option("--no-noise", is_flag=True, help="Quantisation only, no sensor noise.")
+@click.option("--params", "params_path", default=None, type=click.Path(dir_okay=False),
+              help="Run the robot as identified (a twin): the base parameters and friction of "
+              "a params.yaml from guardid identify (or a reference values file) instead of the "
+              "robot YAML's rigid body; motors, sensors and PID gains stay the YAML's. Not with "
+              "a payload.")  # fmt: skip
+@click.option(
+    "--method",
+    default=None,
+    help="With --params: the params file's method to run [default: its first].",
+)
 @output_option("CSV file")
 @force_option("an existing OUTPUT")
 def simulate(
-    robot, duration, seed, payload_time, payload_mass, payload_com, no_noise, output, force
-):
+    robot, duration, seed, payload_time, payload_mass, payload_com, no_noise, params_path,
+    method, output, force,
+):  # fmt: skip
     """Closed-loop PID run of the simulated robot; write true and sensed signals to CSV.
 
     Row k is tick k (t = k T): true q [rad], qd [rad/s] at t, true mean current [A] over
@@ -118,7 +134,13 @@ def simulate(
     from guardid.commands.outputs import check_output, robot_file, write_text
     from guardid.plant import PayloadChange
 
-    check_output(output, [("--robot", robot_file(robot))], force=force)
+    inputs = [("--robot", robot_file(robot))] + ([("--params", params_path)] if params_path else [])
+    check_output(output, inputs, force=force)
+    if method is not None and params_path is None:
+        raise SimulateError("--method goes with --params")
+    if params_path is not None and payload_time is not None:
+        raise SimulateError("--params: not with a payload (a twin's rigid body is its base "
+                            "parameters; a payload changes the full ones)")  # fmt: skip
     if not (duration > 0 and math.isfinite(duration)):
         raise SimulateError(f"--duration must be > 0 s, got {duration}")
     payload = ()
@@ -134,9 +156,16 @@ def simulate(
         if payload_mass < 0 or payload_time < 0:
             raise SimulateError("--payload-time and --payload-mass must be >= 0")
         payload = (PayloadChange(payload_time, payload_mass, com),)
+    twin = None
+    if params_path is not None:
+        from guardid.robot import load_robot
+        from guardid.twin import load_twin
+
+        robot = load_robot(robot)
+        twin = load_twin(params_path, robot, method, option="--params")
     wall = time.perf_counter()
     rows, sq_err, n = [], None, 0
-    for desc, s, sp in run(robot, duration, seed, payload, noise=not no_noise):
+    for desc, s, sp in run(robot, duration, seed, payload, noise=not no_noise, twin=twin):
         cols = [*s.q, *s.qd, *s.current_true, *s.counts, *s.q_sensed, *s.voltage, *s.current]
         rows.append(f"{s.tick},{s.time:.6f}," + ",".join(f"{x:.9g}" for x in (*cols, *sp)))
         err = [r - q for r, q in zip(sp, s.q, strict=True)]
@@ -148,6 +177,8 @@ def simulate(
             f"# sample_period_s: {description.sample_period}",
             "# units: rad, rad/s, A, V; row k = tick k (t = k T), currents/voltages are means"
             " over (k-1)T..kT, setpoint = the PID's reference at tick k"]  # fmt: skip
+    if twin is not None:
+        head.append(f"# twin: {twin.label}")
     if payload:
         head.append(f"# payload: time_s={payload_time} mass_kg={payload_mass} com_m={payload_com}")
     text = "\n".join([*head, ",".join(_columns(len(description.joints))), *rows]) + "\n"

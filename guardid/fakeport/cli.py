@@ -27,6 +27,9 @@ _FAULTS = {
     "start": "start each joint at a seeded point within +-this many encoder counts (<= 2^30)",
     "supply": "this run's supply voltage within +-this fraction of nominal (seeded)",
     "ripple": "supply ripple from tick to tick, std as a fraction of the supply (seeded)",
+    "params": "serve a twin: the rigid body and friction of a params.yaml from guardid identify "
+    "or a reference values file (docs/REPLAY.md)",
+    "method": "with --params: the params file's method [default: its first]",
 }
 
 

@@ -43,6 +43,8 @@ def make_device(robot: str, options: SimOptions, name: str | None = None) -> Dev
         return NAMED_DEVICES[name](robot, options)
     if _factory is not None:
         return _factory(robot, options)
+    if options.params is not None and options.twin is None:
+        options = with_twin(robot, options)
     if options.firmware == "c":
         from guardid.firmware.c_core import FirmwareBuildError, make_sim_device_c
 
@@ -63,3 +65,25 @@ def make_device(robot: str, options: SimOptions, name: str | None = None) -> Dev
     from guardid.firmware import make_sim_device
 
     return make_sim_device(robot, options)
+
+
+def with_twin(robot: str, options: SimOptions) -> SimOptions:
+    """``options`` with the :class:`guardid.twin.Twin` of ``options.params`` loaded (its
+    errors as one-line SimUrlError naming params=)."""
+    from dataclasses import replace
+
+    from guardid.errors import GuardidError
+    from guardid.robot import load_robot
+    from guardid.twin import load_twin
+
+    try:
+        twin = load_twin(options.params, load_robot(robot), options.method,
+                         option=f"params={options.params}")  # fmt: skip
+    except SimUrlError:
+        raise
+    except GuardidError as exc:
+        message = str(exc).removeprefix(f"{options.params}: ")
+        if not message.startswith("params="):
+            message = f"params={options.params}: {message}"
+        raise SimUrlError(message) from None
+    return replace(options, twin=twin)

@@ -3,7 +3,7 @@
 ``sim://<robot name or YAML path>?seed=1&pacing=lockstep|realtime|<factor>&noise=1|0
 &payload_time=30&payload_mass=1.0&payload_com=0.12,0.02,0&drop=1e-4&flip=1e-5
 &latency_ms=16&disconnect_s=40&firmware=py|c|avr&mcu=atmega328p|atmega2560&upstream=0|1
-&phase=0|1&start=COUNTS&supply=FRACTION&ripple=FRACTION``
+&phase=0|1&start=COUNTS&supply=FRACTION&ripple=FRACTION&params=PARAMS.yaml&method=NAME``
 
 What a real robot's repeated runs vary, drawn from ``seed`` (each from its own stream, so the
 sensor noise draws stay those of the same seed without them):
@@ -16,6 +16,10 @@ sensor noise draws stay those of the same seed without them):
   uniform in [-F, F] (a bench supply's setting, a battery's charge);
 * ``ripple=F``: and varies from tick to tick by a factor (1 + F z), z standard normal, the
   same for every motor (other loads on the supply).
+
+``params=PARAMS.yaml`` runs a twin instead of the robot YAML's rigid body: the base
+parameters of one set of a params file (``method=``, default its first) or of a reference
+values file, with their friction (:mod:`guardid.twin`); not with a payload.
 
 The PID closes on counts and the sensors' noise does not enter the loop, so without
 ``supply`` or ``ripple`` the simulated robot is deterministic apart from its start, which
@@ -59,6 +63,9 @@ class SimOptions:
     supply: float = 0.0  # per-run supply voltage within +-supply of nominal (fraction)
     ripple: float = 0.0  # per-tick supply ripple, std as a fraction of the supply
     faults: FaultConfig = field(default_factory=FaultConfig)
+    params: str | None = None  # params.yaml / reference values file: run the twin
+    method: str | None = None  # the params file's method (default: its first)
+    twin: object = None  # the loaded guardid.twin.Twin (set when the device is made)
 
     @property
     def lockstep(self) -> bool:
@@ -95,6 +102,12 @@ def _pacing(text: str) -> float | None:
         return _float(0.0, lo_open=True)(text)
     except ValueError:
         raise ValueError("must be lockstep, realtime or a speed factor > 0") from None
+
+
+def _text(text: str) -> str:
+    if not text:
+        raise ValueError("must not be empty")
+    return text
 
 
 def _seed(text: str) -> int:
@@ -146,6 +159,8 @@ _PARSERS: dict[str, Callable[[str], object]] = {
     "start": _float(0.0, hi=START_MAX_COUNTS),
     "supply": _float(0.0, hi=0.5),
     "ripple": _float(0.0, hi=0.2),
+    "params": _text,
+    "method": _text,
 }
 OPTION_NAMES = tuple(_PARSERS)
 
@@ -173,6 +188,11 @@ def parse_options(
     )
     if "mcu" in values and values.get("firmware") != "avr":
         raise SimUrlError(f"{label('mcu')}: only with firmware=avr")
+    if "method" in values and "params" not in values:
+        raise SimUrlError(f"{label('method')}: only with {label('params')}")
+    if "params" in values and "payload_time" in values:
+        raise SimUrlError(f"{label('payload_time')}: not with {label('params')} (a twin's body is "
+                          "its base parameters; a payload changes the full ones)")  # fmt: skip
     if values.get("start") and values.get("phase"):
         raise SimUrlError(f"{label('start')}: not with phase=1 (start includes the encoder phase)")
     return SimOptions(robot=robot or "guard", faults=faults, **values)

@@ -543,7 +543,8 @@ def encoder_phase_q0(description, seed: int) -> list[float]:
 def make_plant(description, options) -> Plant:
     """Plant for the fake port from its options (seed, noise, payload_time/mass/com, phase:
     :func:`encoder_phase_q0`, start: :func:`start_pose_q0`, supply and ripple:
-    :class:`SupplyVariation`)."""
+    :class:`SupplyVariation`; twin: a :class:`guardid.twin.Twin` run instead of the
+    description's rigid body)."""
     from guardid.plant.payload import PayloadChange
 
     payload = ()
@@ -554,5 +555,9 @@ def make_plant(description, options) -> Plant:
     if getattr(options, "start", 0.0):
         q0 = start_pose_q0(description, options.seed, options.start)
     supply = SupplyVariation(getattr(options, "supply", 0.0), getattr(options, "ripple", 0.0))
+    twin = getattr(options, "twin", None)  # params=: the identified robot (guardid.twin)
+    if twin is not None:
+        return Plant(twin.description, model=twin.model, substeps=twin.substeps,
+                     seed=options.seed, noise=options.noise, q0=q0, supply=supply)  # fmt: skip
     return Plant(description, seed=options.seed, noise=options.noise, payload=payload, q0=q0,
                  supply=supply)  # fmt: skip

@@ -41,9 +41,12 @@ def identify_page(result, description, runs, logs, cond, A, y, tracker) -> str:
     return identification_report(result, inputs, title=f"guardid: {description.name} identified")
 
 
-def validate_page(description, names, sets, keep, current_units: bool) -> str:
+def validate_page(description, names, sets, keep, current_units: bool, loaded=(),
+                  replayed=None) -> str:  # fmt: skip
     """The ``validate --report`` page from what :func:`guardid.identify.validation.
-    validate_runs` kept (its ``keep`` dict)."""
+    validate_runs` kept (its ``keep`` dict); with ``replayed`` (``validate --simulate``:
+    (run, label) -> simulated angles, and ``scores``) of the runs ``loaded``, the measured
+    and simulated angles too."""
     from guardid.identify.validation import joint_units
 
     joints = [j.name for j in description.joints]
@@ -67,7 +70,12 @@ def validate_page(description, names, sets, keep, current_units: bool) -> str:
             )  # fmt: skip
         )
     units = joint_units(description, current_units)
+    extra = ()
+    if replayed is not None:
+        from guardid.report.replay import simulation_section
+
+        extra = (simulation_section(loaded, [str(x) for x in names], replayed, joints),)
     return validation_report(
         runs, joints, units, command=command_line(), notes=[keep["head"]],
-        title=f"guardid: {description.name} validated",
+        title=f"guardid: {description.name} validated", extra=extra,
     )  # fmt: skip

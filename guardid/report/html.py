@@ -444,9 +444,10 @@ class ValidationRun:
 
 def validation_report(
     runs: list[ValidationRun], joint_names, effort_units, command: str = "", notes=(),
-    title: str | None = None,
+    title: str | None = None, extra=(),
 ) -> str:  # fmt: skip
-    """The validation page (sections :data:`VALIDATION_SECTIONS`) as an HTML string."""
+    """The validation page (sections :data:`VALIDATION_SECTIONS`, then ``extra``: (id,
+    heading, HTML) sections) as an HTML string."""
     labels = list(runs[0].preds)
     mean = {k: float(np.mean([r.scores[k][0] for r in runs])) for k in labels}
     best = min(labels, key=lambda k: mean[k])
@@ -493,6 +494,7 @@ def validation_report(
         "spectrum": "".join(specs),
     }
     sections = [(sid, h, content[sid]) for sid, h in VALIDATION_SECTIONS.items()]
+    sections += list(extra)
     meta = [f"command: {command}" if command else ""]
     return _page(title or "guardid validation report", meta, sections)
 
