@@ -55,6 +55,14 @@ def _load_trajectory(path: str):
     help="Longest wait for an answer or a telemetry frame [s]; unanswered commands are "
     "sent again, up to 5 times.",
 )
+@click.option(
+    "--no-reset",
+    "no_reset",
+    is_flag=True,
+    help="Open a board's port without pulsing DTR and handshake at once (default: reset the "
+    "Arduino-class board, wait out its boot loader for the firmware's INFO, then HELLO with "
+    "retries; docs/REAL_ROBOT.md 'Connecting').",
+)
 @output_option("Log file (CSV)")
 @force_option("an existing OUTPUT")
 @click.option("--quiet", is_flag=True, help="No progress display.")
@@ -84,8 +92,8 @@ def _load_trajectory(path: str):
     f"[default cap: {UNTIL_STD_CAP_S:g} s]. Exit 4 when the cap comes first.",
 )
 def capture(
-    port, baud, robot, trajectory_path, duration, periods, timeout, output, force, quiet,
-    online, online_effort, until_std,
+    port, baud, robot, trajectory_path, duration, periods, timeout, no_reset, output, force,
+    quiet, online, online_effort, until_std,
 ):  # fmt: skip
     """Run the trajectory on the robot in closed loop and record telemetry to OUTPUT.
 
@@ -103,7 +111,7 @@ def capture(
         try:
             result, tracker, live = _capture(
                 port, baud, robot, trajectory_path, duration, periods, timeout, output,
-                force, quiet, online, online_effort, stop, until_std,
+                force, quiet, online, online_effort, stop, until_std, reset=not no_reset,
             )  # fmt: skip
         except CaptureStopped:
             end_line()
@@ -135,7 +143,7 @@ def capture(
 
 def _capture(
     port, baud, robot, trajectory_path, duration, periods, timeout, output, force, quiet,
-    online, online_effort, stop, until_std=None,
+    online, online_effort, stop, until_std=None, reset=True,
 ):  # fmt: skip
     """Check everything, then capture; return (CaptureResult, online tracker or None,
     :class:`guardid.online.information.UntilStd` or None)."""
@@ -144,6 +152,7 @@ def _capture(
     from guardid.capture.stop import StopAwarePort
     from guardid.commands.outputs import check_output, robot_file
     from guardid.link import Session, open_port
+    from guardid.link.board import connect
     from guardid.robot import load_robot
 
     if port is not None and not port.strip():
@@ -182,11 +191,11 @@ def _capture(
             )
     port_url = f"sim://{robot}" if port is None else port
     stop.check()
-    serial_port = open_port(port_url, baud)
+    serial_port = open_port(port_url, baud, reset=reset)
     session = Session(StopAwarePort(serial_port, stop), timeout_s=timeout)
     try:
         try:
-            info = session.handshake()
+            info = connect(session, port_url, reset=reset)
             check_info(info, description, port_url)
         except BaseException:
             stop.disarm()

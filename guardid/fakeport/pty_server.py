@@ -15,6 +15,14 @@ telemetry see the same device tick sequence as through ``sim://`` in lock-step):
   output consumed the server steps anyway (then the tick sequence depends on timing;
   ``idle_s = 0`` disables the fallback).
 
+A device with a ``reset()`` (``firmware=avr`` with a boot loader) is reset whenever a
+program opens the pty, as a board's USB port resets its MCU through DTR (avrdude's DTR
+ioctl fails on a pty). Each open is a fresh bench session: the robot is back at its start
+(power cycle; the MCU's flash keeps what was written), so a capture after flashing meets
+the robot a ``sim://`` capture meets. The clock runs from that open (the boot loader's wait
+passes in host silence through the idle fallback); output not read by the previous
+program is dropped.
+
 Host bytes reach the device as soon as they arrive. Real-time pacing: events run on
 the wall clock (times the factor) from the host's first byte on. A simulated disconnect
 closes the master side, which the host sees as a SerialException on read.
@@ -34,6 +42,7 @@ from collections.abc import Callable
 
 from guardid.fakeport.device import wants_time
 from guardid.fakeport.engine import LinkEngine
+from guardid.fakeport.pty_opens import OpenWatch
 
 MAX_OUTBUF = 1 << 20  # [bytes] unread output kept for a host that does not read
 STEP_LIMIT_S = 1.0  # [s simulated] a lock-step step gives up after this long
@@ -59,9 +68,14 @@ class PtyServer:
         self.path = os.ttyname(self.slave)
         self.overflow = 0  # [bytes] discarded because the host did not read
         self._out = bytearray()
+        resets = callable(getattr(engine.device, "reset", None))
+        self._opens = OpenWatch(self.path) if resets else None
+        self.resets = 0  #: device resets on a program's open
 
     def close(self) -> None:
         """Close both ends (idempotent)."""
+        if self._opens is not None:
+            self._opens.close()
         for fd in (self.master, self.slave):
             if fd >= 0:
                 try:
@@ -82,6 +96,10 @@ class PtyServer:
         t0 = 0.0
         while not should_stop():
             now = time.monotonic()
+            if self._opens is not None and self._opens.opened():
+                self._reset_device()
+                talked, answered, last_host = True, False, now
+                t0 = now - (0.0 if self.pacing is None else self.engine.now_s / self.pacing)
             if self.pacing is not None and talked:
                 self.engine.advance_to(self._sim_ns(t0, now))
                 self._collect()
@@ -108,6 +126,14 @@ class PtyServer:
                 self._collect()
                 answered, last_step = False, time.monotonic()
         return "stopped"
+
+    def _reset_device(self) -> None:
+        """A program opened the pty: reset the MCU (DTR), drop the old session's output."""
+        self.engine.device.reset(power_cycle=True)
+        self.engine.take()
+        self._out.clear()
+        termios.tcflush(self.slave, termios.TCIFLUSH)
+        self.resets += 1
 
     def _drained(self) -> bool:
         if self.unread():
