@@ -487,6 +487,8 @@ static void redrive_pins(as_t *s)
 {
     int j, k;
     s->redrive = 0;
+    avr_extint_set_strict_lvl_trig(s->avr, 0, 0); /* the reset set them again (as_init) */
+    avr_extint_set_strict_lvl_trig(s->avr, 1, 0);
     /* simavr drops a pin IRQ raised at the value it holds, which the port's reset left
        while clearing the register: make every level count as a change */
     for (j = 0; j < AS_JOINTS; ++j)

@@ -19,9 +19,11 @@ A device with a ``reset()`` (``firmware=avr`` with a boot loader) is reset whene
 program opens the pty, as a board's USB port resets its MCU through DTR (avrdude's DTR
 ioctl fails on a pty). Each open is a fresh bench session: the robot is back at its start
 (power cycle; the MCU's flash keeps what was written), so a capture after flashing meets
-the robot a ``sim://`` capture meets. The clock runs from that open (the boot loader's wait
-passes in host silence through the idle fallback); output not read by the previous
-program is dropped.
+the robot a ``sim://`` capture meets. Output not read by the previous program is dropped.
+While the MCU boots (boot loader) its clock follows the wall clock, whatever the pacing:
+a boot loader's wait for a programmer is real time on a board, and a host's silence after
+its open (avrdude's DTR handling, guardid's wait for INFO) must not outlast it in
+simulated time; from the firmware's first tick on the pacing rules above hold.
 
 Host bytes reach the device as soon as they arrive. Real-time pacing: events run on
 the wall clock (times the factor) from the host's first byte on. A simulated disconnect
@@ -94,13 +96,17 @@ class PtyServer:
         talked = answered = False
         last_host = last_step = time.monotonic()
         t0 = 0.0
+        boot_origin = (0, last_host)  # (engine ns, wall s) of the last reset
         while not should_stop():
             now = time.monotonic()
             if self._opens is not None and self._opens.opened():
                 self._reset_device()
                 talked, answered, last_host = True, False, now
                 t0 = now - (0.0 if self.pacing is None else self.engine.now_s / self.pacing)
-            if self.pacing is not None and talked:
+                boot_origin = (self.engine.now_ns, now)
+            if self._booting():
+                self._boot_to(boot_origin[0] + round((now - boot_origin[1]) * 1e9))
+            elif self.pacing is not None and talked:
                 self.engine.advance_to(self._sim_ns(t0, now))
                 self._collect()
             if self.engine.disconnected:
@@ -121,11 +127,21 @@ class PtyServer:
             quiet = now - last_host
             waited = now - max(last_host, last_step)
             due = (answered and quiet >= self.settle_s) or (0 < self.idle_s <= waited)
-            if due and wants_time(self.engine.device) and self._drained():
+            if due and wants_time(self.engine.device) and not self._booting() and self._drained():
                 self.engine.advance_until_output(round(STEP_LIMIT_S * 1e9))
                 self._collect()
                 answered, last_step = False, time.monotonic()
         return "stopped"
+
+    def _booting(self) -> bool:
+        return self._opens is not None and getattr(self.engine.device, "booting", False)
+
+    def _boot_to(self, t_ns: int) -> None:
+        """Run the booting MCU's ticks due by ``t_ns``; stop at the firmware's first."""
+        engine = self.engine
+        while self._booting() and (e := engine.next_event_ns()) is not None and e <= t_ns:
+            engine.step()
+        self._collect()
 
     def _reset_device(self) -> None:
         """A program opened the pty: reset the MCU (DTR), drop the old session's output."""

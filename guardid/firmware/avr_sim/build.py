@@ -97,16 +97,18 @@ def _run(cmd, what: str) -> None:
         raise FirmwareBuildError(f"firmware=avr: {what} failed: {lines[0]}")
 
 
-def build_elf(mcu: str = "atmega328p", extra_cflags: str = "") -> Path:
+def build_elf(mcu: str = "atmega328p", extra_cflags: str = "", robot_header: str = "") -> Path:
     """The AVR firmware's ELF for ``mcu`` (built with the port's own Makefile on first use).
 
     ``extra_cflags`` (tests) is appended to the compiler flags, e.g.
-    ``-DBOARD_ENC0_SIGN=-1`` to build a deliberately broken port."""
+    ``-DBOARD_ENC0_SIGN=-1`` to build a deliberately broken port. ``robot_header``: the
+    text of a ``robot_config.h`` generated for another robot (``guardid flash``), used in
+    place of the port's own."""
     if mcu not in MCUS:
         raise FirmwareBuildError(f"mcu={mcu}: unknown MCU (known: {', '.join(MCUS)})")
     _require_toolchain()
     avr_gcc = os.path.realpath(shutil.which("avr-gcc") or "avr-gcc")
-    tag = _digest(_firmware_sources(), f"{mcu}|{extra_cflags}|{avr_gcc}")
+    tag = _digest(_firmware_sources(), f"{mcu}|{extra_cflags}|{avr_gcc}|{robot_header}")
     out = cache_dir() / f"guard-avr-{mcu}-{tag}.elf"
     if out.is_file():
         return out
@@ -115,9 +117,29 @@ def build_elf(mcu: str = "atmega328p", extra_cflags: str = "") -> Path:
         cmd = ["make", "-s", "-f", str(AVR_DIR / "Makefile"), f"MCU={mcu}", f"BUILD={tmp}"]
         if extra_cflags:
             cmd.append(f"EXTRA_CFLAGS={extra_cflags}")
+        if robot_header:
+            header = Path(tmp) / "robot_config.h"
+            header.write_text(robot_header)
+            cmd.append(f"ROBOT_CONFIG={header}")
         cmd.append(f"{tmp}/guard.elf")
         _run(cmd, f"building the AVR firmware for {mcu}")
         os.replace(Path(tmp) / "guard.elf", out)
+    return out
+
+
+def source_digest() -> str:
+    """A digest of the firmware's sources (not of the compiler): part of a build's id."""
+    return _digest(_firmware_sources(), "")
+
+
+def build_hex(elf: Path) -> Path:
+    """The flash image of ``elf`` as Intel HEX beside it (``avr-objcopy``, no EEPROM)."""
+    out = elf.with_suffix(".hex")
+    if not out.is_file():
+        tmp = out.with_suffix(f".{os.getpid()}.tmp")
+        _run(["avr-objcopy", "-O", "ihex", "-R", ".eeprom", str(elf), str(tmp)],
+             "converting the ELF to Intel HEX")  # fmt: skip
+        os.replace(tmp, out)
     return out
 
 

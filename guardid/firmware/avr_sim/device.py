@@ -38,6 +38,7 @@ AVCC_MV = 5000
 BAUD = F_CPU / (8 * 17)  #: 115200 requested, U2X with UBRR 16: 117647 bit/s (board_init)
 OUTPUT_LATENCY_S = 0.003  #: plant period starts this long after the tick interrupt
 BOOT_LIMIT_S = 1.0
+BOOT_ANSWER_S = 0.002  #: [s] a booting MCU runs this long after a host's bytes are in
 STAT_NAMES = (
     "cycle", "ticks", "work_n", "work_max", "work_sum", "late_outputs", "tx_hwm",
     "edges0", "edges1", "count_err_max", "count_err_ticks", "tx_bytes", "rx_bytes",
@@ -167,8 +168,17 @@ class AvrFirmware:
 
     # ------------------------------------------------------------------ Device
     def receive(self, data: bytes) -> None:
-        """Bytes from the host: queued on the MCU's RX line at the UART's baud rate."""
+        """Bytes from the host: queued on the MCU's RX line at the UART's baud rate. While
+        the MCU boots (no plant yet) it runs on until they are in and answered
+        (:data:`BOOT_ANSWER_S` more), as a boot loader answers a programmer at once."""
         data = bytes(data)
+        if self.booting:
+            self.lib.as_rx_push(self._h, data, len(data))
+            cycles = (len(data) + 1) * F_CPU * 10 / BAUD + BOOT_ANSWER_S * F_CPU
+            rc = self.lib.as_boot_step(self._h, cycles)
+            self._check(min(rc, 0), "booting")
+            self.booting = rc == 0
+            return
         while data:
             used = self.lib.as_rx_push(self._h, data, len(data))
             data = data[used:]
