@@ -40,11 +40,13 @@ def flash(port, robot, board_name, avrdude, timeout):
     from guardid.capture.checks import check_info
     from guardid.errors import LinkError
     from guardid.flash import BOARDS, build_for_robot, run_avrdude
+    from guardid.flash.avrdude import require_avrdude
     from guardid.link import Session, open_port
     from guardid.link.board import connect
     from guardid.robot import load_robot
 
     board = BOARDS[board_name]
+    require_avrdude(avrdude)
     description = load_robot(robot)
     build = build_for_robot(description, board.mcu)
     click.echo(

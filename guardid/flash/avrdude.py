@@ -29,8 +29,8 @@ class AvrdudeError(LinkError):
     """avrdude failed talking to the board (exit 3)."""
 
 
-_NO_ANSWER = re.compile(r"not in sync|not responding|timeout|no response|protocol error", re.I)
-_OPEN = re.compile(r"ser_open|cannot open port|can't open device|unable to open", re.I)
+_NO_ANSWER = re.compile(r"not in sync|not responding|timeout|no response|protocol e", re.I)
+_OPEN = re.compile(r"ser_open|cannot open port|can't open device", re.I)
 _SIGNATURE = re.compile(r"signature\s*=\s*(0x[0-9a-f]+|[0-9a-f ]{6,})", re.I)
 _VERIFY = re.compile(r"verification error|verify error|mismatch", re.I)
 
@@ -79,11 +79,16 @@ def _first_error(lines: list[str]) -> str:
     return lines[-1] if lines else "no output"
 
 
+def require_avrdude(avrdude: str = "avrdude") -> None:
+    """ConfigError (exit 2) when the program ``avrdude`` cannot be found."""
+    if shutil.which(avrdude) is None:
+        raise ConfigError(f"{avrdude}: not found; install it (apt-get install avrdude)")
+
+
 def run_avrdude(board: Board, port: str, hex_path: Path, avrdude: str = "avrdude") -> str:
     """Write and verify ``hex_path``; return avrdude's output. ConfigError when avrdude is
     missing, else :func:`explain`'s error when it fails."""
-    if shutil.which(avrdude) is None:
-        raise ConfigError(f"{avrdude}: not found; install it (apt-get install avrdude)")
+    require_avrdude(avrdude)
     cmd = avrdude_command(board, port, hex_path, avrdude)
     try:
         res = subprocess.run(cmd, capture_output=True, text=True, timeout=TIMEOUT_S)
