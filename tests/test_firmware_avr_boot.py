@@ -142,3 +142,20 @@ def test_bootloader_option_checks():
 def test_ci_must_not_skip_the_boot_loader_tests():
     if os.environ.get("CI") == "true":
         assert MISSING == [], f"CI without: {MISSING}"
+
+
+def test_a_pty_opens_without_reset_and_has_no_dtr_to_pulse():
+    """--no-reset on a device path: pyserial opens it with DTR released; a pseudo-terminal
+    has no modem lines, so the pulse reports False instead of failing (its server resets)."""
+    from guardid.link import open_port
+    from guardid.link.board import pulse_dtr
+
+    master, slave = os.openpty()
+    try:
+        port = open_port(os.ttyname(slave), reset=False)
+        assert port.is_open and port.dtr is False
+        assert pulse_dtr(port, wall_clock=False) is False
+        port.close()
+    finally:
+        os.close(master)
+        os.close(slave)
