@@ -25,7 +25,11 @@
 #include <stdint.h>
 
 #include "guard_fw.h"
+#ifdef ROBOT_CONFIG_HEADER /* make ROBOT_CONFIG=path: a header generated for another robot */
+#include ROBOT_CONFIG_HEADER
+#else
 #include "robot_config.h"
+#endif
 
 #ifndef F_CPU
 #define F_CPU 16000000UL

@@ -11,7 +11,9 @@
 
 #include "board.h"
 
+#ifndef FIRMWARE_ID /* guardid flash passes the build's own id */
 #define FIRMWARE_ID 0x47554331UL /* "GUC1": guard C core, AVR port */
+#endif
 #define RX_BYTES_PER_LOOP 16u    /* keep the tick latency short under a flood of bytes */
 
 /* The robot (joints, encoder counts per revolution, supply, limits, PID gains) comes from

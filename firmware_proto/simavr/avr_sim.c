@@ -67,6 +67,7 @@ enum {
     ST_WORK_MAX_TICK, /* Timer1 compare match (1 = first) of the worst tick work */
     ST_LATE_TICKS,    /* compare matches raised before the previous tick's work ended */
     ST_LATE_FIRST,    /* the first such compare match (0: none) */
+    ST_RESETS,        /* MCU resets after power-on (host DTR, watchdog) */
     ST_N
 };
 
@@ -107,7 +108,7 @@ typedef struct {
     double sigma_ma[AS_JOINTS], sigma_mv[AS_JOINTS]; /* per conversion */
     double supply_mv[AS_JOINTS];
     double ma[AS_JOINTS], mv[AS_JOINTS];             /* period means now on the inputs */
-    uint64_t rng;
+    uint64_t rng, seed;
     int noise;
     /* encoders */
     int32_t count[AS_JOINTS]; /* count now on the A/B pins */
@@ -136,7 +137,17 @@ typedef struct {
     int32_t out[2 * AS_JOINTS];
     int vec_arg[AS_VECTORS];
     avr_int_vector_t pcint_enc; /* own_pcint */
+    void (*core_reset)(struct avr_t *avr); /* the MCU model's own reset hook */
+    int estop_down;                         /* the e-stop input is pressed */
+    int redrive;                            /* a reset cleared the input pins */
 } as_t;
+
+/* avr->reset is called with the MCU only: the instance of each MCU (one per as_init). */
+#define AS_MAX_INSTANCES 16
+static struct {
+    avr_t *avr;
+    as_t *s;
+} as_instances[AS_MAX_INSTANCES];
 
 size_t as_size(void) { return sizeof(as_t); }
 
@@ -220,7 +231,8 @@ static void on_pending(struct avr_irq_t *irq, uint32_t value, void *param)
         return;
     s->pend_since[v] = s->avr->cycle;
     s->pending[v] = 1u;
-    if (v == s->pins.vec_timer1) {
+    /* the firmware's tick: a boot loader may poll Timer1's flag with the interrupt off */
+    if (v == s->pins.vec_timer1 && (s->avr->data[0x6Fu] & 0x02u)) { /* TIMSK1 OCIE1A */
         if (s->st[ST_TICKS] > 0 && (s->busy || s->st[ST_WORK_N] == s->work_n_at_t1)) {
             s->st[ST_LATE_TICKS]++;
             if (!s->st[ST_LATE_FIRST])
@@ -466,14 +478,103 @@ static int pin_map(as_pins_t *p, int mcu)
     return -1;
 }
 
+
+static avr_cycle_count_t pwm_timer(struct avr_t *avr, avr_cycle_count_t when, void *param);
+static avr_cycle_count_t rx_timer(struct avr_t *avr, avr_cycle_count_t when, void *param);
+
+/* The wires still carry the encoders and the e-stop after a reset of the MCU's ports. */
+static void redrive_pins(as_t *s)
+{
+    int j, k;
+    s->redrive = 0;
+    avr_extint_set_strict_lvl_trig(s->avr, 0, 0); /* the reset set them again (as_init) */
+    avr_extint_set_strict_lvl_trig(s->avr, 1, 0);
+    /* simavr drops a pin IRQ raised at the value it holds, which the port's reset left
+       while clearing the register: make every level count as a change */
+    for (j = 0; j < AS_JOINTS; ++j)
+        for (k = 0; k < 2; ++k)
+            s->enc_irq[j][k]->value = ~0u;
+    s->estop_irq->value = ~0u;
+    for (j = 0; j < AS_JOINTS; ++j)
+        set_enc_pins(s, j, s->count[j]);
+    drive_estop(s, s->estop_down);
+}
+
+/* After any reset (simavr cleared every cycle timer): the PWM sampler and the RX pacing run
+   again, the tick bookkeeping starts over (t1 = 0: booting until the first tick). */
+static void on_reset(struct avr_t *avr)
+{
+    as_t *s = NULL;
+    int i;
+    for (i = 0; i < AS_MAX_INSTANCES; ++i)
+        if (as_instances[i].avr == avr)
+            s = as_instances[i].s;
+    if (!s)
+        return;
+    if (s->core_reset)
+        s->core_reset(avr);
+    s->st[ST_RESETS]++;
+    s->t1 = s->t1_prev = 0u;
+    s->busy = 0;
+    s->xoff = 0;
+    s->n_edges = s->next_edge = 0u;
+    s->redrive = 1; /* after the ports' own reset (run_to) */
+    avr_cycle_timer_register(avr, AS_PWM_PERIOD, pwm_timer, s);
+    s->rx_timer_on = s->rx_len > 0u;
+    if (s->rx_timer_on)
+        avr_cycle_timer_register(avr, 1u, rx_timer, s);
+}
+
+/* Put a boot loader image (bytes at byte address base) into the boot section and start
+   there, as the BOOTRST fuse does: 0, or -3 outside the flash. */
+static int load_boot_loader(as_t *s, const uint8_t *image, size_t size, uint32_t base)
+{
+    if (size == 0u || base > s->avr->flashend)
+        return -3;
+    if ((size_t)base + size > (size_t)s->avr->flashend + 1u) /* a stray record past the end */
+        size = (size_t)s->avr->flashend + 1u - base;
+    memcpy(s->avr->flash + base, image, size);
+    s->avr->reset_pc = base;
+    s->avr->pc = base;
+    s->avr->codeend = s->avr->flashend;
+    return 0;
+}
+
+/* The host pulls DTR: the auto-reset capacitor pulses RESET (an external reset). */
+static void set_external_reset_flag(as_t *s)
+{
+    avr_regbit_t r = s->avr->reset_flags.extrf;
+    s->avr->data[r.reg] = (uint8_t)(1u << r.bit);
+}
+
+/* power_cycle: the robot is back at its start too (encoder pins at their first counts,
+   sensors at 0, the noise stream from its seed), as at as_init. */
+void as_reset(as_t *s, int power_cycle)
+{
+    if (power_cycle) {
+        int j;
+        for (j = 0; j < AS_JOINTS; ++j) {
+            s->count[j] = s->count0[j];
+            s->ma[j] = s->mv[j] = 0.0;
+        }
+        s->rng = s->seed;
+    }
+    avr_reset(s->avr);
+    set_external_reset_flag(s);
+}
+
 /* cfg (doubles): f_cpu [Hz], tick [cycles], latency L [cycles], avcc [mV], baud [bit/s],
    seed, noise (0/1), RAM addresses of enc_count, tx_head, tx_tail (0: unknown), then per
    joint: supply [mV], current full scale [mA], voltage full scale [mV], noise sigma per
    conversion of current [mA] and voltage [mV], initial count.
-   Returns 0, or -1 bad arguments, -2 unknown MCU, -3 ELF unreadable. */
+   boot (boot_size bytes at byte address boot_base): a boot loader image run from reset
+   before the firmware (boot_size 0: none).
+   Returns 0, or -1 bad arguments, -2 unknown MCU, -3 ELF or boot loader unreadable,
+   -7 too many instances. */
 #define AS_CFG_FIXED 10u
 #define AS_CFG_JOINT 6u
-int as_init(as_t *s, const char *elf, int mcu, const double *cfg, size_t n)
+int as_init(as_t *s, const char *elf, const uint8_t *boot, size_t boot_size, double boot_base,
+            int mcu, const double *cfg, size_t n)
 {
     static const char *names[] = {"atmega328p", "atmega2560"};
     int j;
@@ -502,11 +603,24 @@ int as_init(as_t *s, const char *elf, int mcu, const double *cfg, size_t n)
     s->fw.frequency = (uint32_t)cfg[0];
     avr_load_firmware(s->avr, &s->fw);
     s->avr->frequency = (uint32_t)cfg[0];
+    if (boot_size) {
+        if (load_boot_loader(s, boot, boot_size, (uint32_t)boot_base) != 0)
+            return -3;
+        set_external_reset_flag(s); /* the host's open pulsed DTR */
+    }
+    for (i = 0; i < AS_MAX_INSTANCES && as_instances[i].avr; ++i)
+        ;
+    if (i == AS_MAX_INSTANCES)
+        return -7;
+    as_instances[i].avr = s->avr;
+    as_instances[i].s = s;
+    s->core_reset = s->avr->reset;
+    s->avr->reset = on_reset;
     s->period = (uint64_t)cfg[1];
     s->latency = (uint64_t)cfg[2];
     s->avr->avcc = s->avr->vcc = s->avr->aref = (uint32_t)cfg[3];
     s->byte_cycles = (uint64_t)ceil(cfg[0] * 10.0 / cfg[4]);
-    s->rng = (uint64_t)cfg[5] * 0x9E3779B97F4A7C15ULL + 0x2545F4914F6CDD1DULL;
+    s->rng = s->seed = (uint64_t)cfg[5] * 0x9E3779B97F4A7C15ULL + 0x2545F4914F6CDD1DULL;
     s->noise = cfg[6] != 0.0;
     s->ram_enc_count = (uint16_t)cfg[7];
     s->ram_tx_head = (uint16_t)cfg[8];
@@ -571,6 +685,10 @@ int as_init(as_t *s, const char *elf, int mcu, const double *cfg, size_t n)
 void as_close(as_t *s)
 {
     if (s->avr) {
+        int i;
+        for (i = 0; i < AS_MAX_INSTANCES; ++i)
+            if (as_instances[i].avr == s->avr)
+                as_instances[i].avr = NULL;
         avr_terminate(s->avr);
         free(s->avr);
         s->avr = NULL;
@@ -601,6 +719,8 @@ static int run_to(as_t *s, uint64_t target)
         int state = avr_run(s->avr);
         if (state == cpu_Done || state == cpu_Crashed)
             return -1;
+        if (s->redrive)
+            redrive_pins(s);
     }
     s->st[ST_CYCLE] = (int64_t)s->avr->cycle;
     return 0;
@@ -621,6 +741,27 @@ int as_boot(as_t *s, double max_cycles)
         return -1;
     sample_outputs(s);
     return 0;
+}
+
+/* Booting (boot loader, firmware set-up; no plant): run `cycles` more cycles or until the
+   first tick interrupt plus L. 1 the tick runs (outputs sampled), 0 still booting, -1
+   crashed. */
+int as_boot_step(as_t *s, double cycles)
+{
+    uint64_t end = s->avr->cycle + (uint64_t)cycles;
+    while (s->t1 == 0u && s->avr->cycle < end) {
+        uint64_t next = s->avr->cycle + 1024u;
+        if (run_to(s, next < end ? next : end) != 0)
+            return -1;
+    }
+    if (s->t1 == 0u)
+        return 0;
+    if (run_to(s, s->t1 + s->latency) != 0)
+        return -1;
+    if (s->t1 == 0u) /* reset again meanwhile */
+        return 0;
+    sample_outputs(s);
+    return 1;
 }
 
 /* The edges of one joint over one period: x0, x1 [counts], v0, v1 [counts/s], from the
@@ -668,11 +809,12 @@ static uint32_t joint_edges(as_t *s, int j, const double *p, uint64_t start, as_
 
 /* One plant period. plant: per joint x0, v0, x1, v1 (encoder counts, counts/s), period-mean
    current [mA] and voltage [mV]. Returns 0, -1 crashed, -4 the tick interrupt stopped,
-   -5 too many edges. */
+   -5 too many edges, -6 the MCU was reset (booting again: as_boot_step). */
 int as_run_tick(as_t *s, const double *plant)
 {
     uint32_t n[AS_JOINTS], a = 0u, b = 0u, k = 0u;
     uint64_t t1 = s->t1, start = t1 + s->latency;
+    int64_t resets;
     int j, rc;
     for (j = 0; j < AS_JOINTS; ++j) {
         const double *p = plant + 6 * j;
@@ -696,9 +838,12 @@ int as_run_tick(as_t *s, const double *plant)
         avr_cycle_timer_register(s->avr, first > s->avr->cycle ? first - s->avr->cycle : 0u,
                                  edge_timer, s);
     }
+    resets = s->st[ST_RESETS];
     rc = run_to(s, t1 + s->period + s->latency);
     if (rc != 0)
         return rc;
+    if (s->st[ST_RESETS] != resets)
+        return -6;
     if (s->t1 == t1)
         return -4;
     if (s->next_edge < s->n_edges) /* edges scheduled past the period's end (rounding) */
@@ -761,6 +906,7 @@ size_t as_tx_take(as_t *s, uint8_t *buf, size_t cap)
 static void drive_estop(as_t *s, int pressed)
 {
     avr_ioport_external_t e;
+    s->estop_down = pressed;
     e.name = 'B';
     e.mask = (uint8_t)(1u << s->pins.estop_bit);
     e.value = pressed ? 0u : e.mask;
@@ -802,4 +948,13 @@ void as_pin_counts(const as_t *s, int32_t *out)
     int j;
     for (j = 0; j < AS_JOINTS; ++j)
         out[j] = s->count[j] - s->count0[j];
+}
+
+/* Copy n bytes of the MCU's flash from byte address addr (what a boot loader wrote). */
+int as_read_flash(const as_t *s, unsigned addr, uint8_t *buf, size_t n)
+{
+    if ((size_t)addr + n > (size_t)s->avr->flashend + 1u)
+        return -1;
+    memcpy(buf, s->avr->flash + addr, n);
+    return 0;
 }

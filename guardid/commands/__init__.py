@@ -19,6 +19,8 @@ COMMANDS = [
      "Score parameter sets on runs LOG [LOG ...]: torque prediction error, all joints stacked."),
     ("fake-port", "guardid.commands.fake_port", "fake_port",
      "Serve the emulated robot on a pseudo-terminal until SIGINT/SIGTERM."),
+    ("flash", "guardid.commands.flash", "flash",
+     "Build the AVR firmware for ROBOT, flash and verify it, check INFO's firmware id."),
     ("ports", "guardid.commands.ports", "ports",
      "List serial ports; warn when a USB-serial adapter's latency timer is above 2 ms."),
     ("reproduce", "guardid.commands.reproduce", "reproduce",

@@ -55,6 +55,14 @@ def _load_trajectory(path: str):
     help="Longest wait for an answer or a telemetry frame [s]; unanswered commands are "
     "sent again, up to 5 times.",
 )
+@click.option(
+    "--no-reset",
+    "no_reset",
+    is_flag=True,
+    help="Open a board's port without pulsing DTR and handshake at once (default: reset the "
+    "Arduino-class board, wait out its boot loader for the firmware's INFO, then HELLO with "
+    "retries; docs/REAL_ROBOT.md 'Connecting').",
+)
 @output_option("Log file (CSV)")
 @force_option("an existing OUTPUT")
 @click.option("--quiet", is_flag=True, help="No progress display.")
@@ -95,8 +103,8 @@ def _load_trajectory(path: str):
     "be sent is counted and skipped, never slowing the capture. docs/LIVE.md.",
 )
 def capture(
-    port, baud, robot, trajectory_path, duration, periods, timeout, output, force, quiet,
-    online, online_effort, until_std, stream_url,
+    port, baud, robot, trajectory_path, duration, periods, timeout, no_reset, output, force,
+    quiet, online, online_effort, until_std, stream_url,
 ):  # fmt: skip
     """Run the trajectory on the robot in closed loop and record telemetry to OUTPUT.
 
@@ -115,6 +123,7 @@ def capture(
             result, tracker, live, stream = _capture(
                 port, baud, robot, trajectory_path, duration, periods, timeout, output,
                 force, quiet, online, online_effort, stop, until_std, stream_url,
+                reset=not no_reset,
             )  # fmt: skip
         except CaptureStopped:
             end_line()
@@ -148,7 +157,7 @@ def capture(
 
 def _capture(
     port, baud, robot, trajectory_path, duration, periods, timeout, output, force, quiet,
-    online, online_effort, stop, until_std=None, stream_url=None,
+    online, online_effort, stop, until_std=None, stream_url=None, reset=True,
 ):  # fmt: skip
     """Check everything, then capture; return (CaptureResult, online tracker or None,
     :class:`guardid.online.information.UntilStd` or None, :class:`guardid.live.udp.UdpStream`
@@ -158,6 +167,7 @@ def _capture(
     from guardid.capture.stop import StopAwarePort
     from guardid.commands.outputs import check_output, robot_file
     from guardid.link import Session, open_port
+    from guardid.link.board import connect
     from guardid.robot import load_robot
 
     if port is not None and not port.strip():
@@ -203,7 +213,7 @@ def _capture(
     stream = _stream(target, description)
     try:
         stop.check()
-        serial_port = open_port(port_url, baud)
+        serial_port = open_port(port_url, baud, reset=reset)
     except BaseException:
         if stream is not None:
             stream.close()
@@ -211,7 +221,7 @@ def _capture(
     session = Session(StopAwarePort(serial_port, stop), timeout_s=timeout)
     try:
         try:
-            info = session.handshake()
+            info = connect(session, port_url, reset=reset)
             check_info(info, description, port_url)
         except BaseException:
             stop.disarm()

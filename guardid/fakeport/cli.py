@@ -70,6 +70,14 @@ class _Command(click.Command):
     default=None,
     help="With --firmware avr: the simulated MCU [default: atmega328p].",
 )
+@click.option(
+    "--bootloader",
+    type=click.Choice(["optiboot", "stk500v2"]),
+    default=None,
+    help="With --firmware avr: run the Arduino boot loader from every reset (optiboot: "
+    "atmega328p, stk500v2: atmega2560, the default --mcu for it); each program that opens "
+    "the pty resets the MCU as a board's DTR line does, so avrdude can flash it.",
+)
 @click.option("--upstream", is_flag=True, help="Also corrupt host->device bytes.")
 @click.option(
     "--phase",
@@ -98,6 +106,7 @@ def fake_port(
     noise,
     firmware,
     mcu,
+    bootloader,
     upstream,
     phase,
     idle_ms,
@@ -114,6 +123,8 @@ def fake_port(
     raw["phase"] = "1" if phase else "0"
     if mcu is not None:
         raw["mcu"] = mcu
+    if bootloader is not None:
+        raw["bootloader"] = bootloader
     raw.update({k: v for k, v in faults.items() if v is not None})
     options = parse_options(robot, raw, label=_flag)
     device = make_device(options.robot, options, name=device_name)

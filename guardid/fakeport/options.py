@@ -3,7 +3,12 @@
 ``sim://<robot name or YAML path>?seed=1&pacing=lockstep|realtime|<factor>&noise=1|0
 &payload_time=30&payload_mass=1.0&payload_com=0.12,0.02,0&drop=1e-4&flip=1e-5
 &latency_ms=16&disconnect_s=40&firmware=py|c|avr&mcu=atmega328p|atmega2560&upstream=0|1
-&phase=0|1&start=COUNTS&supply=FRACTION&ripple=FRACTION&params=PARAMS.yaml&method=NAME``
+&phase=0|1&start=COUNTS&supply=FRACTION&ripple=FRACTION&params=PARAMS.yaml&method=NAME
+&bootloader=optiboot|stk500v2``
+
+``bootloader`` (with ``firmware=avr``): the Arduino boot loader image runs from every reset
+before the firmware (optiboot on the ATmega328P, stk500v2 on the ATmega2560, the default
+``mcu`` for it); the host's DTR pulse resets the MCU, as on a board's USB port.
 
 What a real robot's repeated runs vary, drawn from ``seed`` (each from its own stream, so the
 sensor noise draws stay those of the same seed without them):
@@ -58,6 +63,7 @@ class SimOptions:
     payload_com: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [m]
     firmware: str = "py"
     mcu: str = "atmega328p"  # firmware=avr: the simulated microcontroller
+    bootloader: str | None = None  # firmware=avr: optiboot | stk500v2 runs from each reset
     phase: bool = False  # start each joint at a seeded random point within one encoder count
     start: float = 0.0  # [counts] start each joint at a seeded point within +-start counts
     supply: float = 0.0  # per-run supply voltage within +-supply of nominal (fraction)
@@ -136,6 +142,15 @@ def _mcu(text: str) -> str:
     return text
 
 
+BOOTLOADER_MCU = {"optiboot": "atmega328p", "stk500v2": "atmega2560"}
+
+
+def _bootloader(text: str) -> str:
+    if text not in BOOTLOADER_MCU:
+        raise ValueError("must be optiboot (atmega328p) or stk500v2 (atmega2560)")
+    return text
+
+
 START_MAX_COUNTS = 2.0**30
 """Largest ``start`` [counts]: the telemetry carries positions as 32-bit signed counts, and
 an unlimited joint started beyond that range could not be reported (half the range, so the
@@ -154,6 +169,7 @@ _PARSERS: dict[str, Callable[[str], object]] = {
     "disconnect_s": _float(0.0, lo_open=True),
     "firmware": _firmware,
     "mcu": _mcu,
+    "bootloader": _bootloader,
     "upstream": _bool,
     "phase": _bool,
     "start": _float(0.0, hi=START_MAX_COUNTS),
@@ -193,6 +209,15 @@ def parse_options(
     if "params" in values and "payload_time" in values:
         raise SimUrlError(f"{label('payload_time')}: not with {label('params')} (a twin's body is "
                           "its base parameters; a payload changes the full ones)")  # fmt: skip
+    if "bootloader" in values:
+        boot = values["bootloader"]
+        if values.get("firmware") != "avr":
+            raise SimUrlError(f"{label('bootloader')}: only with firmware=avr")
+        mcu = values.setdefault("mcu", BOOTLOADER_MCU[boot])
+        if mcu != BOOTLOADER_MCU[boot]:
+            raise SimUrlError(
+                f"{label('bootloader')}={boot}: runs on {BOOTLOADER_MCU[boot]}, not {mcu}"
+            )
     if values.get("start") and values.get("phase"):
         raise SimUrlError(f"{label('start')}: not with phase=1 (start includes the encoder phase)")
     return SimOptions(robot=robot or "guard", faults=faults, **values)

@@ -45,6 +45,7 @@ class Serial(SerialBase):
         device = make_device(self.options.robot, self.options)
         name = self.portstr.split("?", 1)[0]
         self.engine = LinkEngine(device, self.options.faults, self.options.seed, name)
+        self._dtr_was = self._dtr_state
         self.is_open = True
         self._stop.clear()
         self._t0 = time.monotonic()
@@ -69,7 +70,14 @@ class Serial(SerialBase):
         """Line settings do not matter to the emulated device."""
 
     def _update_dtr_state(self) -> None:
-        pass
+        """DTR asserted again after being released: a board's auto-reset capacitor pulses
+        RESET; a device with a ``reset()`` (``firmware=avr&bootloader=...``) restarts."""
+        was, self._dtr_was = getattr(self, "_dtr_was", True), self._dtr_state
+        reset = getattr(self.engine.device, "reset", None) if self.engine else None
+        if self._dtr_state and not was and callable(reset):
+            with self._lock:
+                reset()
+                self.engine.take()
 
     def _update_rts_state(self) -> None:
         pass

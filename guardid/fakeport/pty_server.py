@@ -15,6 +15,16 @@ telemetry see the same device tick sequence as through ``sim://`` in lock-step):
   output consumed the server steps anyway (then the tick sequence depends on timing;
   ``idle_s = 0`` disables the fallback).
 
+A device with a ``reset()`` (``firmware=avr`` with a boot loader) is reset whenever a
+program opens the pty, as a board's USB port resets its MCU through DTR (avrdude's DTR
+ioctl fails on a pty). Each open is a fresh bench session: the robot is back at its start
+(power cycle; the MCU's flash keeps what was written), so a capture after flashing meets
+the robot a ``sim://`` capture meets. Output not read by the previous program is dropped.
+While the MCU boots (boot loader) its clock follows the wall clock, whatever the pacing:
+a boot loader's wait for a programmer is real time on a board, and a host's silence after
+its open (avrdude's DTR handling, guardid's wait for INFO) must not outlast it in
+simulated time; from the firmware's first tick on the pacing rules above hold.
+
 Host bytes reach the device as soon as they arrive. Real-time pacing: events run on
 the wall clock (times the factor) from the host's first byte on. A simulated disconnect
 closes the master side, which the host sees as a SerialException on read.
@@ -34,6 +44,7 @@ from collections.abc import Callable
 
 from guardid.fakeport.device import wants_time
 from guardid.fakeport.engine import LinkEngine
+from guardid.fakeport.pty_opens import OpenWatch
 
 MAX_OUTBUF = 1 << 20  # [bytes] unread output kept for a host that does not read
 STEP_LIMIT_S = 1.0  # [s simulated] a lock-step step gives up after this long
@@ -59,9 +70,14 @@ class PtyServer:
         self.path = os.ttyname(self.slave)
         self.overflow = 0  # [bytes] discarded because the host did not read
         self._out = bytearray()
+        resets = callable(getattr(engine.device, "reset", None))
+        self._opens = OpenWatch(self.path) if resets else None
+        self.resets = 0  #: device resets on a program's open
 
     def close(self) -> None:
         """Close both ends (idempotent)."""
+        if self._opens is not None:
+            self._opens.close()
         for fd in (self.master, self.slave):
             if fd >= 0:
                 try:
@@ -80,9 +96,17 @@ class PtyServer:
         talked = answered = False
         last_host = last_step = time.monotonic()
         t0 = 0.0
+        boot_origin = (0, last_host)  # (engine ns, wall s) of the last reset
         while not should_stop():
             now = time.monotonic()
-            if self.pacing is not None and talked:
+            if self._opens is not None and self._opens.opened():
+                self._reset_device()
+                talked, answered, last_host = True, False, now
+                t0 = now - (0.0 if self.pacing is None else self.engine.now_s / self.pacing)
+                boot_origin = (self.engine.now_ns, now)
+            if self._booting():
+                self._boot_to(boot_origin[0] + round((now - boot_origin[1]) * 1e9))
+            elif self.pacing is not None and talked:
                 self.engine.advance_to(self._sim_ns(t0, now))
                 self._collect()
             if self.engine.disconnected:
@@ -103,11 +127,29 @@ class PtyServer:
             quiet = now - last_host
             waited = now - max(last_host, last_step)
             due = (answered and quiet >= self.settle_s) or (0 < self.idle_s <= waited)
-            if due and wants_time(self.engine.device) and self._drained():
+            if due and wants_time(self.engine.device) and not self._booting() and self._drained():
                 self.engine.advance_until_output(round(STEP_LIMIT_S * 1e9))
                 self._collect()
                 answered, last_step = False, time.monotonic()
         return "stopped"
+
+    def _booting(self) -> bool:
+        return self._opens is not None and getattr(self.engine.device, "booting", False)
+
+    def _boot_to(self, t_ns: int) -> None:
+        """Run the booting MCU's ticks due by ``t_ns``; stop at the firmware's first."""
+        engine = self.engine
+        while self._booting() and (e := engine.next_event_ns()) is not None and e <= t_ns:
+            engine.step()
+        self._collect()
+
+    def _reset_device(self) -> None:
+        """A program opened the pty: reset the MCU (DTR), drop the old session's output."""
+        self.engine.device.reset(power_cycle=True)
+        self.engine.take()
+        self._out.clear()
+        termios.tcflush(self.slave, termios.TCIFLUSH)
+        self.resets += 1
 
     def _drained(self) -> bool:
         if self.unread():

@@ -14,8 +14,13 @@ DEFAULT_PORT = "sim://guard"
 _IN_USE = (errno.EAGAIN, errno.EWOULDBLOCK, errno.EBUSY)
 
 
-def open_port(url: str = DEFAULT_PORT, baud: int = 115200, timeout_s: float = 0.1):
+def open_port(url: str = DEFAULT_PORT, baud: int = 115200, timeout_s: float = 0.1,
+              reset: bool = True):  # fmt: skip
     """Open ``url`` (a device such as ``/dev/ttyUSB0`` or a pyserial URL) with 8N1 framing.
+
+    ``reset=False`` opens a device with DTR and RTS released, so that an Arduino-class
+    board is not reset by pyserial (the kernel may still pulse DTR on open unless the port's
+    HUPCL is off: ``stty -F PORT -hupcl``); see :mod:`guardid.link.board`.
 
     A device path is opened exclusively (pyserial's ``exclusive=True``, an advisory lock
     that every guardid process and other pyserial programs asking for it respect); URL
@@ -28,9 +33,15 @@ def open_port(url: str = DEFAULT_PORT, baud: int = 115200, timeout_s: float = 0.
         import guardid.fakeport  # noqa: F401  (registers the sim:// handler)
     extra = {} if "://" in url else {"exclusive": True}
     try:
-        return serial.serial_for_url(
-            url, baudrate=baud, timeout=timeout_s, write_timeout=2.0, **extra
-        )
+        if reset or "://" in url:
+            return serial.serial_for_url(
+                url, baudrate=baud, timeout=timeout_s, write_timeout=2.0, **extra
+            )
+        port = serial.serial_for_url(url, baudrate=baud, timeout=timeout_s, write_timeout=2.0,
+                                     do_not_open=True, **extra)  # fmt: skip
+        port.dtr = port.rts = False
+        port.open()
+        return port
     except ValueError as exc:  # a bad URL option or setting: the user's input, not the link
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise ConfigError(f"port {url}: {reason}") from None

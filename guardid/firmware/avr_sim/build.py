@@ -31,6 +31,28 @@ SHIM_LIBS = ("-lsimavr", "-lm")
 SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
 AVR_TOOLS = ("avr-gcc", "avr-objcopy", "avr-nm", "make")
 F_CPU = 16_000_000
+BOOTLOADER_DIR = Path("/usr/share/arduino/hardware/arduino/avr/bootloaders")
+#: The Arduino boot loaders (Debian's arduino-core-avr) per name: the MCU and the image.
+BOOTLOADERS = {
+    "optiboot": ("atmega328p", BOOTLOADER_DIR / "optiboot" / "optiboot_atmega328.hex"),
+    "stk500v2": ("atmega2560", BOOTLOADER_DIR / "stk500v2" / "stk500boot_v2_mega2560.hex"),
+}
+
+
+def bootloader_hex(name: str, mcu: str) -> Path:
+    """The boot loader image ``name`` for ``mcu`` (FirmwareBuildError naming the fix)."""
+    if name not in BOOTLOADERS:
+        raise FirmwareBuildError(
+            f"bootloader={name}: unknown boot loader (known: {', '.join(BOOTLOADERS)})"
+        )
+    want, path = BOOTLOADERS[name]
+    if mcu != want:
+        raise FirmwareBuildError(f"bootloader={name}: runs on mcu={want}, not mcu={mcu}")
+    if not path.is_file():
+        raise FirmwareBuildError(
+            f"bootloader={name}: {path} missing (apt-get install arduino-core-avr)"
+        )
+    return path
 
 
 def missing_toolchain() -> list[str]:
@@ -75,16 +97,18 @@ def _run(cmd, what: str) -> None:
         raise FirmwareBuildError(f"firmware=avr: {what} failed: {lines[0]}")
 
 
-def build_elf(mcu: str = "atmega328p", extra_cflags: str = "") -> Path:
+def build_elf(mcu: str = "atmega328p", extra_cflags: str = "", robot_header: str = "") -> Path:
     """The AVR firmware's ELF for ``mcu`` (built with the port's own Makefile on first use).
 
     ``extra_cflags`` (tests) is appended to the compiler flags, e.g.
-    ``-DBOARD_ENC0_SIGN=-1`` to build a deliberately broken port."""
+    ``-DBOARD_ENC0_SIGN=-1`` to build a deliberately broken port. ``robot_header``: the
+    text of a ``robot_config.h`` generated for another robot (``guardid flash``), used in
+    place of the port's own."""
     if mcu not in MCUS:
         raise FirmwareBuildError(f"mcu={mcu}: unknown MCU (known: {', '.join(MCUS)})")
     _require_toolchain()
     avr_gcc = os.path.realpath(shutil.which("avr-gcc") or "avr-gcc")
-    tag = _digest(_firmware_sources(), f"{mcu}|{extra_cflags}|{avr_gcc}")
+    tag = _digest(_firmware_sources(), f"{mcu}|{extra_cflags}|{avr_gcc}|{robot_header}")
     out = cache_dir() / f"guard-avr-{mcu}-{tag}.elf"
     if out.is_file():
         return out
@@ -93,9 +117,29 @@ def build_elf(mcu: str = "atmega328p", extra_cflags: str = "") -> Path:
         cmd = ["make", "-s", "-f", str(AVR_DIR / "Makefile"), f"MCU={mcu}", f"BUILD={tmp}"]
         if extra_cflags:
             cmd.append(f"EXTRA_CFLAGS={extra_cflags}")
+        if robot_header:
+            header = Path(tmp) / "robot_config.h"
+            header.write_text(robot_header)
+            cmd.append(f"ROBOT_CONFIG={header}")
         cmd.append(f"{tmp}/guard.elf")
         _run(cmd, f"building the AVR firmware for {mcu}")
         os.replace(Path(tmp) / "guard.elf", out)
+    return out
+
+
+def source_digest() -> str:
+    """A digest of the firmware's sources (not of the compiler): part of a build's id."""
+    return _digest(_firmware_sources(), "")
+
+
+def build_hex(elf: Path) -> Path:
+    """The flash image of ``elf`` as Intel HEX beside it (``avr-objcopy``, no EEPROM)."""
+    out = elf.with_suffix(".hex")
+    if not out.is_file():
+        tmp = out.with_suffix(f".{os.getpid()}.tmp")
+        _run(["avr-objcopy", "-O", "ihex", "-R", ".eeprom", str(elf), str(tmp)],
+             "converting the ELF to Intel HEX")  # fmt: skip
+        os.replace(tmp, out)
     return out
 
 
@@ -121,3 +165,40 @@ def ram_symbols(elf: Path, names) -> dict[str, int]:
             if base in names:
                 found[base] = int(parts[0], 16) - 0x800000
     return found
+
+
+def read_ihex(path: Path) -> tuple[int, bytes]:
+    """An Intel HEX image as (byte address of its first byte, contiguous bytes; gaps 0xFF).
+
+    Data (00), end (01), extended segment (02) and linear (04) address records; start
+    addresses (03, 05) are ignored. FirmwareBuildError naming the file and line when a
+    record is malformed or its checksum is wrong."""
+    chunks: dict[int, int] = {}
+    upper = 0
+    for n, line in enumerate(Path(path).read_text().splitlines(), 1):
+        line = line.strip()
+        if not line:
+            continue
+        try:
+            raw = bytes.fromhex(line[1:]) if line[0] == ":" else b""
+        except ValueError:
+            raw = b""
+        if len(raw) < 5 or len(raw) != raw[0] + 5 or sum(raw) & 0xFF:
+            raise FirmwareBuildError(f"{path}: line {n}: not an Intel HEX record")
+        kind, addr, data = raw[3], int.from_bytes(raw[1:3], "big"), raw[4:-1]
+        if kind == 0:
+            for i, b in enumerate(data):
+                chunks[upper + addr + i] = b
+        elif kind == 1:
+            break
+        elif kind == 2:
+            upper = int.from_bytes(data, "big") << 4
+        elif kind == 4:
+            upper = int.from_bytes(data, "big") << 16
+    if not chunks:
+        raise FirmwareBuildError(f"{path}: no data records")
+    lo, hi = min(chunks), max(chunks)
+    image = bytearray(b"\xff" * (hi - lo + 1))
+    for a, b in chunks.items():
+        image[a - lo] = b
+    return lo, bytes(image)

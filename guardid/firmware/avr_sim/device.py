@@ -23,7 +23,14 @@ import ctypes
 import math
 
 from guardid.errors import GuardidError
-from guardid.firmware.avr_sim.build import F_CPU, build_elf, build_shim, ram_symbols
+from guardid.firmware.avr_sim.build import (
+    F_CPU,
+    bootloader_hex,
+    build_elf,
+    build_shim,
+    ram_symbols,
+    read_ihex,
+)
 from guardid.firmware.avr_sim.robot_header import ADC_CHANNELS, ADC_CONVERSION_CYCLES
 from guardid.firmware.emulator import bind_robot
 
@@ -31,11 +38,12 @@ AVCC_MV = 5000
 BAUD = F_CPU / (8 * 17)  #: 115200 requested, U2X with UBRR 16: 117647 bit/s (board_init)
 OUTPUT_LATENCY_S = 0.003  #: plant period starts this long after the tick interrupt
 BOOT_LIMIT_S = 1.0
+BOOT_ANSWER_S = 0.002  #: [s] a booting MCU runs this long after a host's bytes are in
 STAT_NAMES = (
     "cycle", "ticks", "work_n", "work_max", "work_sum", "late_outputs", "tx_hwm",
     "edges0", "edges1", "count_err_max", "count_err_ticks", "tx_bytes", "rx_bytes",
     "tx_overflow", "edge_overflow", "pwm_rise0", "pwm_rise1", "pwm_last_high0",
-    "pwm_last_high1", "estop_cycle", "work_max_tick", "late_ticks", "late_first",
+    "pwm_last_high1", "estop_cycle", "work_max_tick", "late_ticks", "late_first", "resets",
 )  # fmt: skip
 VECTORS = {  #: interrupt vector numbers of the port's ISRs per MCU
     "atmega328p": {"PCINT0 (e-stop)": 3, "PCINT2 (encoders)": 5, "TIMER1_COMPA (tick)": 11,
@@ -44,7 +52,9 @@ VECTORS = {  #: interrupt vector numbers of the port's ISRs per MCU
                    "USART0_RX": 25, "USART0_UDRE": 26, "ADC": 29},
 }  # fmt: skip
 MCU_INDEX = {"atmega328p": 0, "atmega2560": 1}
-_INIT_ERRORS = {-1: "bad shim configuration", -2: "unknown MCU", -3: "ELF unreadable"}
+_INIT_ERRORS = {-1: "bad shim configuration", -2: "unknown MCU",
+                -3: "ELF or boot loader unreadable", -7: "too many simulated MCUs"}  # fmt: skip
+RESET = -6  #: as_run_tick: the MCU was reset (boot loader, firmware set-up follow)
 
 _lib = None
 
@@ -63,9 +73,15 @@ def load_shim():
     i64p, i32p = ctypes.POINTER(ctypes.c_int64), ctypes.POINTER(ctypes.c_int32)
     sigs = {
         "as_size": (sz, []),
-        "as_init": (ctypes.c_int, [vp, ctypes.c_char_p, ctypes.c_int, dp, sz]),
+        "as_init": (
+            ctypes.c_int,
+            [vp, ctypes.c_char_p, ctypes.c_char_p, sz, ctypes.c_double, ctypes.c_int, dp, sz],
+        ),  # fmt: skip
         "as_close": (None, [vp]),
         "as_boot": (ctypes.c_int, [vp, ctypes.c_double]),
+        "as_boot_step": (ctypes.c_int, [vp, ctypes.c_double]),
+        "as_reset": (None, [vp, ctypes.c_int]),
+        "as_read_flash": (ctypes.c_int, [vp, ctypes.c_uint, ctypes.c_char_p, sz]),
         "as_run_tick": (ctypes.c_int, [vp, dp]),
         "as_outputs": (None, [vp, i32p]),
         "as_rx_push": (sz, [vp, ctypes.c_char_p, sz]),
@@ -92,13 +108,23 @@ class AvrFirmware:
     Same :class:`guardid.fakeport.device.Device` interface as the other firmwares.
     ``mcu``: ``atmega328p`` or ``atmega2560``; ``seed``/``noise``: the ADC noise;
     ``extra_cflags``: appended to the firmware build (tests build broken ports with it).
+    ``bootloader``: ``optiboot`` (ATmega328P) or ``stk500v2`` (ATmega2560), the Arduino
+    boot loader image run from every reset before the firmware (:meth:`reset` is the host's
+    DTR pulse; the plant holds still while the MCU boots); None: the firmware alone.
+    ``plant_factory``: makes the plant as at the start, for :meth:`reset`'s power cycle.
     """
 
     def __init__(self, description, plant, *, mcu: str = "atmega328p", seed: int = 0,
                  noise: bool = True, extra_cflags: str = "",
-                 output_latency_s: float = OUTPUT_LATENCY_S) -> None:  # fmt: skip
+                 output_latency_s: float = OUTPUT_LATENCY_S,
+                 bootloader: str | None = None, plant_factory=None) -> None:  # fmt: skip
         bind_robot(self, description, plant)
+        self.plant_factory = plant_factory
         self.mcu = mcu
+        self.bootloader = bootloader
+        boot_base, boot = 0, b""
+        if bootloader is not None:
+            boot_base, boot = read_ihex(bootloader_hex(bootloader, mcu))
         self.elf = build_elf(mcu, extra_cflags)
         self.lib = load_shim()
         syms = ram_symbols(self.elf, ("enc_count", "tx_head", "tx_tail"))
@@ -123,12 +149,17 @@ class AvrFirmware:
         self._mem = (ctypes.c_int64 * words)()
         self._h = ctypes.cast(self._mem, ctypes.c_void_p)
         arr = (ctypes.c_double * len(cfg))(*cfg)
-        rc = self.lib.as_init(self._h, str(self.elf).encode(), MCU_INDEX[mcu], arr, len(cfg))
+        elf = str(self.elf).encode()
+        rc = self.lib.as_init(
+            self._h, elf, boot, len(boot), boot_base, MCU_INDEX[mcu], arr, len(cfg)
+        )
         if rc != 0:
             raise AvrSimError(f"firmware=avr: {_INIT_ERRORS.get(rc, rc)} ({self.elf})")
         self._open = True
         self._buf = ctypes.create_string_buffer(16384)
-        self._check(self.lib.as_boot(self._h, BOOT_LIMIT_S * F_CPU), "booting")
+        self.booting = bootloader is not None  # the boot loader runs first, tick by tick
+        if not self.booting:
+            self._check(self.lib.as_boot(self._h, BOOT_LIMIT_S * F_CPU), "booting")
         self._out = bytearray(self._take())  # INFO at reset: the host's first bytes
         self._x = [q * c for q, c in zip(q0, self.counts_per_rad, strict=True)]
         self._v = [v * c for v, c in zip(qd0, self.counts_per_rad, strict=True)]
@@ -137,8 +168,17 @@ class AvrFirmware:
 
     # ------------------------------------------------------------------ Device
     def receive(self, data: bytes) -> None:
-        """Bytes from the host: queued on the MCU's RX line at the UART's baud rate."""
+        """Bytes from the host: queued on the MCU's RX line at the UART's baud rate. While
+        the MCU boots (no plant yet) it runs on until they are in and answered
+        (:data:`BOOT_ANSWER_S` more), as a boot loader answers a programmer at once."""
         data = bytes(data)
+        if self.booting:
+            self.lib.as_rx_push(self._h, data, len(data))
+            cycles = (len(data) + 1) * F_CPU * 10 / BAUD + BOOT_ANSWER_S * F_CPU
+            rc = self.lib.as_boot_step(self._h, cycles)
+            self._check(min(rc, 0), "booting")
+            self.booting = rc == 0
+            return
         while data:
             used = self.lib.as_rx_push(self._h, data, len(data))
             data = data[used:]
@@ -146,7 +186,13 @@ class AvrFirmware:
                 self.advance()
 
     def advance(self) -> None:
-        """One plant period under the MCU's outputs, the MCU running alongside."""
+        """One plant period under the MCU's outputs, the MCU running alongside; while it
+        boots (boot loader, firmware set-up) one period of the MCU alone."""
+        if self.booting:
+            rc = self.lib.as_boot_step(self._h, self.period_cycles)
+            self._check(min(rc, 0), "booting")
+            self.booting = rc == 0
+            return
         volts = self.applied_volts()
         sample = self.plant.step(volts)
         p = self._plant_in
@@ -155,7 +201,11 @@ class AvrFirmware:
             ma, mv = sample.current_true[j] * 1e3, sample.voltage_true[j] * 1e3
             p[6 * j : 6 * j + 6] = [self._x[j], self._v[j], x1, v1, ma, mv]
             self._x[j], self._v[j] = x1, v1
-        self._check(self.lib.as_run_tick(self._h, p), f"tick {self.plant.tick}")
+        rc = self.lib.as_run_tick(self._h, p)
+        if rc == RESET:  # the firmware's watchdog or a boot loader restarted the MCU
+            self.booting = True
+            return
+        self._check(rc, f"tick {self.plant.tick}")
 
     def take_output(self) -> bytes:
         """Bytes the MCU transmitted since the previous call (first: its INFO at reset)."""
@@ -177,6 +227,30 @@ class AvrFirmware:
         self.close()
 
     # ------------------------------------------------------------------ extras
+    def reset(self, power_cycle: bool = False) -> None:
+        """The host's DTR pulse: an external reset (the boot loader runs first if there is
+        one; the flash keeps what was written); bytes on their way to the MCU are lost.
+        ``power_cycle``: the robot is put back at its start too (plant, encoder pins,
+        sensor noise stream as built), as for a fresh bench session."""
+        if power_cycle:
+            if self.plant_factory is None:
+                raise AvrSimError("firmware=avr: a power cycle needs the plant's factory")
+            self.plant = self.plant_factory()
+            q0, qd0 = self.plant.state.q, self.plant.state.qd
+            self._x = [q * c for q, c in zip(q0, self.counts_per_rad, strict=True)]
+            self._v = [v * c for v, c in zip(qd0, self.counts_per_rad, strict=True)]
+        self.lib.as_reset(self._h, int(power_cycle))
+        self._out.clear()
+        self._take()
+        self.booting = True
+
+    def read_flash(self, address: int, size: int) -> bytes:
+        """``size`` bytes of the MCU's flash from byte ``address`` (what a boot loader wrote)."""
+        buf = ctypes.create_string_buffer(size)
+        if self.lib.as_read_flash(self._h, address, buf, size) != 0:
+            raise AvrSimError(f"flash {address:#x}+{size}: outside the {self.mcu}'s flash")
+        return buf.raw
+
     def applied_volts(self) -> list[float]:
         """Motor voltages [V] the pins command: DIR sign times duty/255 of the supply."""
         self.lib.as_outputs(self._h, self._outs)
@@ -235,4 +309,6 @@ def make_sim_device_avr(robot: str, options) -> AvrFirmware:
     description = load_robot(robot)
     plant = make_plant(description, options)
     return AvrFirmware(description, plant, mcu=getattr(options, "mcu", "atmega328p"),
-                       seed=options.seed, noise=options.noise)  # fmt: skip
+                       seed=options.seed, noise=options.noise,
+                       bootloader=getattr(options, "bootloader", None),
+                       plant_factory=lambda: make_plant(description, options))  # fmt: skip

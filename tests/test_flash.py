@@ -1,0 +1,195 @@
+"""guardid flash: the firmware built for the robot, written through the real Arduino boot
+loaders (Debian's arduino-core-avr) by avrdude into simavr behind a pty, then a capture on
+the same pty.
+
+Slow by nature (avrdude's own sync delays, an 18 kB image at 115200 baud, the boot loaders'
+real-time wait): one flash per boot loader. Needs avrdude and what firmware=avr needs;
+skipped with the reason when missing, except under CI (CI=true).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import threading
+
+import pytest
+from capturetools import gentle_trajectory
+from click.testing import CliRunner
+
+from guardid.cli import main as cli
+from guardid.firmware.avr_sim.build import BOOTLOADERS, missing_toolchain, read_ihex
+from guardid.flash import BOARDS
+from guardid.flash.avrdude import AvrdudeError, explain
+
+MISSING = missing_toolchain() + [
+    f"arduino-core-avr ({path})" for _, path in BOOTLOADERS.values() if not path.is_file()
+]
+if shutil.which("avrdude") is None:
+    MISSING.append("avrdude")
+NEEDS_FLASH = pytest.mark.skipif(
+    bool(MISSING) and os.environ.get("CI") != "true",
+    reason=f"needs {', '.join(MISSING)} (apt-get install avrdude arduino-core-avr gcc-avr "
+    "avr-libc binutils-avr simavr libsimavr-dev)",
+)
+
+
+def _rows(path) -> list[str]:
+    return [ln for ln in path.read_text().splitlines() if not ln.startswith("#")]
+
+
+def _same_telemetry(pty_rows: list[str], sim_rows: list[str]) -> None:
+    """Row for row: tick, time, counts, angles, setpoints and status equal (the motion and
+    everything the robot decided); the voltage and current means equal but for a few
+    conversions. Over a pty the host's bytes reach the simulated UART at a point of the tick
+    that depends on the wall clock, and its interrupts move an ADC conversion (of ~36 per
+    channel and tick) across a tick's edge now and then: a tick's mean then moves by a
+    fraction of the step between two conversions, here < 0.1 V and < 0.02 A
+    (docs/REAL_ROBOT.md). With sim:// the boot loader path is byte-identical
+    (tests/test_firmware_avr_boot.py)."""
+    assert len(pty_rows) == len(sim_rows) and pty_rows[0] == sim_rows[0]
+    head = pty_rows[0].split(",")
+    sensors = [k for k, name in enumerate(head) if name.startswith(("v_", "i_"))]
+    worst = {name: 0.0 for name in head if name.startswith(("v_", "i_"))}
+    for a, b in zip(pty_rows[1:], sim_rows[1:], strict=True):
+        fa, fb = a.split(","), b.split(",")
+        assert [x for k, x in enumerate(fa) if k not in sensors] == [
+            x for k, x in enumerate(fb) if k not in sensors
+        ], (a, b)
+        for k in sensors:
+            worst[head[k]] = max(worst[head[k]], abs(float(fa[k]) - float(fb[k])))
+    assert all(d < (0.1 if n.startswith("v_") else 0.02) for n, d in worst.items()), worst
+
+
+def _capture(runner, port, traj, seconds, out):
+    res = runner.invoke(cli, ["capture", "--trajectory", str(traj), "--duration", str(seconds),
+                              "--port", port, "--quiet", "-o", str(out)])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    return _rows(out)
+
+
+def _serve(raw: dict):
+    """A simulated board behind a pty, served in-process (what ``guardid fake-port`` does),
+    so that the test can read its flash; yields (server, device)."""
+    from guardid.fakeport.engine import LinkEngine
+    from guardid.fakeport.factory import make_device
+    from guardid.fakeport.options import parse_options
+    from guardid.fakeport.pty_server import PtyServer
+
+    options = parse_options("guard", raw)
+    device = make_device("guard", options)
+    server = PtyServer(LinkEngine(device, options.faults, options.seed), None)
+    stop = threading.Event()
+    thread = threading.Thread(target=server.serve, args=(stop.is_set,), daemon=True)
+    thread.start()
+    try:
+        yield server, device
+    finally:
+        stop.set()
+        thread.join(timeout=10)
+        server.close()
+        device.close()
+
+
+@pytest.fixture
+def optiboot_pty():
+    """``guardid fake-port --firmware avr --bootloader optiboot --no-noise --seed 7``."""
+    yield from _serve({"firmware": "avr", "bootloader": "optiboot", "noise": "0", "seed": "7"})
+
+
+@NEEDS_FLASH
+def test_flash_through_optiboot_then_a_10_s_capture_on_the_same_pty(optiboot_pty, tmp_path):
+    """avrdude writes and verifies, the simulated flash holds the image avr-objcopy made
+    of the ELF, INFO reports the build's id, and a 10 s capture on the pty is row for row
+    that of firmware=avr."""
+    server, device = optiboot_pty
+    runner = CliRunner()
+    res = runner.invoke(cli, ["flash", "--port", server.path, "--board", "uno"])
+    assert res.exit_code == 0, res.output
+    from guardid.flash import build_for_robot
+    from guardid.robot import load_robot
+
+    build = build_for_robot(load_robot("guard"), "atmega328p")
+    assert f"firmware id {build.firmware_id:#010x}, the new build runs" in res.output
+    base, image = read_ihex(build.hex)
+    assert base == 0 and device.read_flash(0, len(image)) == image
+    traj = gentle_trajectory(tmp_path / "t.yaml")
+    pty_rows = _capture(runner, server.path, traj, 10, tmp_path / "pty.csv")
+    header = (tmp_path / "pty.csv").read_text()
+    assert f"firmware_id: {build.firmware_id}" in header
+    sim_rows = _capture(runner, "sim://guard?firmware=avr&noise=0&seed=7", traj, 10,
+                        tmp_path / "sim.csv")  # fmt: skip
+    assert len(pty_rows) == round(10 / 0.015) + 1
+    _same_telemetry(pty_rows, sim_rows)
+
+
+@NEEDS_FLASH
+def test_fake_port_cli_stk500v2_flash_then_capture(tmp_path):
+    """guardid fake-port --firmware avr --bootloader stk500v2: flash --board mega, then a
+    short capture on the same pty, row for row that of firmware=avr on the ATmega2560."""
+    env = dict(os.environ)
+    env.pop("GUARDID_FAKEPORT_DEVICE", None)
+    cmd = [sys.executable, "-m", "guardid", "fake-port", "--firmware", "avr", "--bootloader",
+           "stk500v2", "--no-noise", "--seed", "2"]  # fmt: skip
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=env)  # fmt: skip
+    try:
+        path = proc.stdout.readline().strip()
+        assert path.startswith("/dev/"), proc.stderr.read()
+        runner = CliRunner()
+        res = runner.invoke(cli, ["flash", "--port", path, "--board", "mega"])
+        assert res.exit_code == 0, res.output
+        assert "through stk500v2" in res.output and "the new build runs" in res.output
+        traj = gentle_trajectory(tmp_path / "t.yaml")
+        pty_rows = _capture(runner, path, traj, 1, tmp_path / "pty.csv")
+    finally:
+        proc.terminate()
+        proc.wait(timeout=20)
+    sim = "sim://guard?firmware=avr&mcu=atmega2560&noise=0&seed=2"
+    _same_telemetry(pty_rows, _capture(runner, sim, traj, 1, tmp_path / "sim.csv"))
+
+
+def test_flash_without_avrdude_says_so_in_one_line():
+    res = CliRunner().invoke(
+        cli, ["flash", "--port", "/dev/null", "--avrdude", "/nonexistent/avrdude"]
+    )
+    assert res.exit_code == 2
+    assert res.output == (
+        "guardid: error: /nonexistent/avrdude: not found; install it (apt-get install avrdude)\n"
+    )
+
+
+# avrdude 7.1's own words, recorded against the optiboot pty: -p m168 (another chip), and
+# -U flash:v: with another image (the read-back differs)
+WRONG_CHIP = """avrdude: AVR device initialized and ready to accept instructions
+avrdude: device signature = 0x1e950f (probably m328p)
+avrdude error: expected signature for ATmega168 is 1E 94 06
+        double check chip or use -F to override this check
+"""
+VERIFY = """avrdude warning: verification mismatch
+        device 0x9d != input 0x31 at addr 0x0084 (error)
+avrdude error: verification mismatch
+"""
+NO_SUCH_PORT = "avrdude OS error: cannot open port /dev/ttyACM9: No such file or directory\n"
+# a pty served without a boot loader (the firmware ignores STK500 sync bytes)
+NO_ANSWER = """avrdude: send: 0 [30]   [20]
+avrdude: ser_recv(): programmer is not responding
+avrdude stk500_recv() [stk500.c:63] error: programmer is not responding
+avrdude error: unable to open programmer arduino on port /dev/pts/3
+"""
+
+
+def test_avrdude_failures_become_one_line_with_their_exit_code():
+    uno = BOARDS["uno"]
+    err = explain(uno, "/dev/ttyACM0", WRONG_CHIP)
+    assert err.exit_code == 2 and "not an ATmega328P (device signature 0x1e950f)" in str(err)
+    err = explain(uno, "/dev/ttyACM0", VERIFY)
+    assert isinstance(err, AvrdudeError) and err.exit_code == 3 and "verification" in str(err)
+    err = explain(uno, "/dev/ttyACM9", NO_SUCH_PORT)
+    assert err.exit_code == 3 and "cannot open" in str(err)
+    err = explain(uno, "/dev/pts/3", NO_ANSWER)
+    assert err.exit_code == 3 and "no answer from the optiboot boot loader" in str(err)
+    texts = (WRONG_CHIP, VERIFY, NO_SUCH_PORT, NO_ANSWER)
+    assert all("\n" not in str(explain(uno, "p", t)) for t in texts)
