@@ -27,6 +27,8 @@ _FAULTS = {
     "start": "start each joint at a seeded point within +-this many encoder counts (<= 2^30)",
     "supply": "this run's supply voltage within +-this fraction of nominal (seeded)",
     "ripple": "supply ripple from tick to tick, std as a fraction of the supply (seeded)",
+    "wiring": "wiring faults, comma-separated kind:joint[=value] (encoder_reversed, "
+    "motor_reversed, current_offset=A, current_gain=G, cpr=COUNTS, stuck; guardid doctor)",
 }
 
 

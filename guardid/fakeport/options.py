@@ -3,7 +3,10 @@
 ``sim://<robot name or YAML path>?seed=1&pacing=lockstep|realtime|<factor>&noise=1|0
 &payload_time=30&payload_mass=1.0&payload_com=0.12,0.02,0&drop=1e-4&flip=1e-5
 &latency_ms=16&disconnect_s=40&firmware=py|c|avr&mcu=atmega328p|atmega2560&upstream=0|1
-&phase=0|1&start=COUNTS&supply=FRACTION&ripple=FRACTION``
+&phase=0|1&start=COUNTS&supply=FRACTION&ripple=FRACTION
+&wiring=encoder_reversed:tilt,cpr:pan=96,...``
+
+``wiring``: the robot's wiring faults (:mod:`guardid.plant.wiring`), for ``guardid doctor``.
 
 What a real robot's repeated runs vary, drawn from ``seed`` (each from its own stream, so the
 sensor noise draws stay those of the same seed without them):
@@ -33,6 +36,7 @@ from urllib.parse import parse_qsl
 
 from guardid.errors import LinkError
 from guardid.fakeport.faults import FaultConfig
+from guardid.plant.wiring import WiringFault, parse_wiring
 
 
 class SimUrlError(LinkError, ValueError):
@@ -59,6 +63,7 @@ class SimOptions:
     supply: float = 0.0  # per-run supply voltage within +-supply of nominal (fraction)
     ripple: float = 0.0  # per-tick supply ripple, std as a fraction of the supply
     faults: FaultConfig = field(default_factory=FaultConfig)
+    wiring: tuple[WiringFault, ...] = ()  # guardid.plant.wiring faults
 
     @property
     def lockstep(self) -> bool:
@@ -146,6 +151,7 @@ _PARSERS: dict[str, Callable[[str], object]] = {
     "start": _float(0.0, hi=START_MAX_COUNTS),
     "supply": _float(0.0, hi=0.5),
     "ripple": _float(0.0, hi=0.2),
+    "wiring": parse_wiring,
 }
 OPTION_NAMES = tuple(_PARSERS)
 
