@@ -2,7 +2,7 @@
 
 ``sim://<robot name or YAML path>?seed=1&pacing=lockstep|realtime|<factor>&noise=1|0
 &payload_time=30&payload_mass=1.0&payload_com=0.12,0.02,0&drop=1e-4&flip=1e-5
-&latency_ms=16&disconnect_s=40&firmware=py|c|avr&mcu=atmega328p|atmega2560&upstream=0|1
+&latency_ms=16&disconnect_s=40&reconnect_s=3&firmware=py|c|avr&mcu=atmega328p|atmega2560&upstream=0|1
 &phase=0|1&start=COUNTS&supply=FRACTION&ripple=FRACTION
 &wiring=encoder_reversed:tilt,cpr:pan=96,...``
 
@@ -144,6 +144,7 @@ _PARSERS: dict[str, Callable[[str], object]] = {
     "flip": _float(0.0, hi=1.0),
     "latency_ms": _float(0.0),
     "disconnect_s": _float(0.0, lo_open=True),
+    "reconnect_s": _float(0.0, lo_open=True),
     "firmware": _firmware,
     "mcu": _mcu,
     "upstream": _bool,
@@ -175,8 +176,11 @@ def parse_options(
         flip=values.pop("flip", 0.0),
         latency_s=latency / 1000.0,
         disconnect_s=values.pop("disconnect_s", None),
+        reconnect_s=values.pop("reconnect_s", None),
         upstream=values.pop("upstream", False),
     )
+    if faults.reconnect_s is not None and faults.disconnect_s is None:
+        raise SimUrlError(f"{label('reconnect_s')}: only with disconnect_s (the link's outage)")
     if "mcu" in values and values.get("firmware") != "avr":
         raise SimUrlError(f"{label('mcu')}: only with firmware=avr")
     if values.get("start") and values.get("phase"):
