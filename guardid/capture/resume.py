@@ -39,11 +39,11 @@ def next_rest_index(trajectory, description, reached: int, after: int | None = N
     after ``after``, a previous resume, so that every resume makes progress), or None when
     the trajectory is not at rest there."""
     period_ticks = trajectory.period / description.sample_period
-    k = math.ceil(reached / period_ticks - 1e-9)
-    index = math.ceil(k * period_ticks - 1e-9)
-    while after is not None and index <= after:
+    k = max(0, math.floor(reached / period_ticks))
+    while (index := math.ceil(k * period_ticks - 1e-9)) < reached or (
+        after is not None and index <= after
+    ):
         k += 1
-        index = math.ceil(k * period_ticks - 1e-9)
     t = np.array([index * description.sample_period])
     speed = np.abs(trajectory.velocities(t)).reshape(-1)
     vmax = np.array([_limit(j, "velocity") for j in description.joints])
