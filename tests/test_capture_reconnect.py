@@ -5,6 +5,11 @@ watchdog idles it). A 2 s-period trajectory keeps the captures short (lock-step)
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 import yaml
@@ -195,3 +200,36 @@ def test_approach_within_half_the_limits(trajectory):
     ramp = approach_ticks(GUARD, approach[0], target)
     assert ramp * T >= 1.875 * 1.0 / (0.5 * 0.9)  # the pan's 1 rad at half its 0.9 rad/s
     assert len(rows) == lead + 533 - 267
+
+
+def test_pty_whose_server_goes_away_and_comes_back(trajectory, tmp_path):
+    """fake-port --link: the pty vanishes at 2.5 s (simulated) with its symlink, a new one
+    comes up 0.3 s later behind the same link; the capture waits, re-handshakes, goes on."""
+    link = tmp_path / "robot"
+    cmd = [sys.executable, "-m", "guardid", "fake-port", "--link", str(link),
+           "--disconnect-s", "2.5", "--reconnect-s", "0.3"]  # fmt: skip
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True)
+    try:
+        first = proc.stdout.readline().strip()
+        assert os.readlink(link) == first
+        log = tmp_path / "run.csv"
+        res = invoke("capture", "--trajectory", trajectory, "--duration", 6, "--port", link,
+                     "--reconnect", 20, "--quiet", "-o", log)  # fmt: skip
+        assert res.exit_code == 0, res.stderr
+        assert os.path.exists(link)  # a new pty (its number may be reused) behind the path
+    finally:
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=60) == 0
+        proc.stdout.close()
+    assert not os.path.lexists(link)  # removed at exit
+    d = np.genfromtxt(log, delimiter=",", names=True)
+    assert len(np.flatnonzero(np.diff(d["tick"]) > 1)) == 1
+    assert d["time_s"][0] < 2.5 and round(6 / T) - 1 - 267 + 1 <= len(d)
+    f = footer(log)
+    assert f["reconnects"] == 1 and f["gaps"][0]["resume_row"] == 267
+
+
+def test_reconnect_needs_a_disconnect():
+    res = invoke("fake-port", "--reconnect-s", "1")
+    assert res.exit_code == 2 and "--reconnect-s" in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1

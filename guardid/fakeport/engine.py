@@ -124,15 +124,25 @@ class LinkEngine:
             self._emit(self.device.take_output())
 
     def advance_to(self, t_ns: int) -> None:
-        """Run every event due at or before ``t_ns``; then the clock reads ``t_ns``."""
+        """Run every event due at or before ``t_ns``; then the clock reads ``t_ns``. A
+        disconnect on the way ends the call there (the host must see it before a
+        reconnect)."""
+        was_down = self.disconnected
         while (e := self.next_event_ns()) is not None and e <= t_ns:
             self.step()
+            if self.disconnected and not was_down:
+                return
         self.now_ns = max(self.now_ns, t_ns)
 
     def advance_until_output(self, max_ns: int) -> None:
         """Run events until bytes reach the host, the link dies, or ``max_ns`` elapse."""
         start = self.now_ns
-        while not self.rx and (e := self.next_event_ns()) is not None and e - start <= max_ns:
+        while (
+            not self.rx
+            and not self.disconnected
+            and (e := self.next_event_ns()) is not None
+            and e - start <= max_ns
+        ):
             self.step()
 
     def tick_until_output(self, size: int, deadline_ns: int) -> bool:
