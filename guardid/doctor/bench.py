@@ -247,7 +247,8 @@ def run_checks(session, description, latency: Check | None = None) -> list[Check
             if session.next_telemetry().status & ESTOP_BIT:
                 checks.append(Check(
                     "e-stop", "", FAIL, "the e-stop input is active",
-                    "release the e-stop button (or check its wire: the input is active low)",
+                    "release the e-stop button (its input, board.h, reads low: pressed or "
+                    "shorted to ground)",
                 ))  # fmt: skip
                 return checks + _not_run(facts)
         rest = _rows(session, REST_TICKS)

@@ -161,8 +161,9 @@ def motion_checks(
     out = [_verdict(
         "encoder direction vs motor voltage", name,
         f"counts {direction} under positive voltage (Ke {ke:.3g} V s/rad)",
-        "swap the encoder's A and B wires if the joint turned its positive way "
-        "(the YAML's), else swap the motor's leads" if ke < 0 else "",
+        "if the joint turned its positive way (the YAML's), swap the encoder's A and B "
+        "wires (or set its BOARD_ENC<joint index>_SIGN to -1 in board.h), else swap the "
+        "motor's leads" if ke < 0 else "",
     )]  # fmt: skip
     cpr = joint.ke / abs(ke) * joint.counts_per_rev  # the real counts per motor revolution
     out.append(_verdict(
