@@ -233,3 +233,35 @@ def test_reconnect_needs_a_disconnect():
     res = invoke("fake-port", "--reconnect-s", "1")
     assert res.exit_code == 2 and "--reconnect-s" in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
+
+
+def test_wait_for_a_device_path(tmp_path):
+    """A device path that is not there: None after the wait; a stop request raises at the
+    next attempt; a path that is there opens."""
+    from guardid.link.reconnect import wait_for_port
+
+    class Gone:
+        closed = False
+
+        def close(self):
+            Gone.closed = True
+
+    missing = str(tmp_path / "ttyUSB9")
+    assert wait_for_port(Gone(), missing, 115200, 0.2, poll_s=0.05) is None and Gone.closed
+    calls = []
+
+    def check():
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        wait_for_port(Gone(), missing, 115200, 60.0, poll_s=0.01, check=check)
+    master, slave = os.openpty()
+    try:
+        port = wait_for_port(Gone(), os.ttyname(slave), 115200, 1.0)
+        assert port is not None and port.is_open
+        port.close()
+    finally:
+        os.close(master)
+        os.close(slave)

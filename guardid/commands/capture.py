@@ -259,7 +259,10 @@ class _Reconnector:
         from guardid.errors import LinkError
         from guardid.link.reconnect import wait_for_port
 
-        port = wait_for_port(self.ports[-1], self.url, self.baud, self.within_s)
+        self.stop.check()
+        port = wait_for_port(
+            self.ports[-1], self.url, self.baud, self.within_s, check=self.stop.check
+        )
         if port is None:
             raise LinkError(f"port {self.url}: gone, not back within {self.within_s:g} s")
         if port is not self.ports[-1]:
