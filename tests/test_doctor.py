@@ -190,6 +190,16 @@ def test_pulse_refused_when_the_limits_leave_no_room():
     assert pulse_plan(joint, yaml, round(hi * 1000), 0.015)[0] == -1
 
 
+def test_slow_settling_keeps_the_watchdog_fed(monkeypatch):
+    """Resting 450 ms between the joints' pulses (longer than the 250 ms watchdog) in
+    voltage mode: 0 V is sent meanwhile, so the second joint still gets its pulses."""
+    import guardid.doctor.bench as bench
+
+    monkeypatch.setattr(bench, "STILL_TICKS", 30)
+    checks, _ = doctor_checks()
+    assert failed(checks) == set()
+
+
 def test_runaway_joint_idles_the_motors():
     """An encoder of 40x the YAML's counts runs out of the pulse's window: motors idled."""
     checks, device = doctor_checks("&wiring=cpr:pan=2000")

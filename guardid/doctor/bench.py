@@ -84,11 +84,15 @@ def _rows(session, n: int) -> list:
     return [session.next_telemetry() for _ in range(n)]
 
 
-def settle(session, min_ticks: int = 1) -> list:
+def settle(session, min_ticks: int = 1, keepalive=None) -> list:
     """Telemetry until every joint's counts stood still for STILL_TICKS ticks, at least
-    ``min_ticks`` rows and at most SETTLE_LIMIT_TICKS; returns the rows read."""
+    ``min_ticks`` rows and at most SETTLE_LIMIT_TICKS; returns the rows read.
+    ``keepalive`` (if given) is called before every read (0 V in voltage mode: the
+    watchdog must not trip while the joints come to rest)."""
     rows, still = [session.next_telemetry()], 0
     while (still < STILL_TICKS or len(rows) < min_ticks) and len(rows) < SETTLE_LIMIT_TICKS:
+        if keepalive is not None:
+            keepalive()
         rows.append(session.next_telemetry())
         still = still + 1 if rows[-1].counts == rows[-2].counts else 0
     return rows
@@ -191,7 +195,7 @@ def pulse_plan(joint, yaml: JointYaml, counts0: int, period_s: float):
 def pulse_joint(session, description, k: int, yaml: JointYaml, period_s: float) -> JointPulses:
     """Run joint ``k``'s pulses (voltage mode already on) and return what they recorded."""
     n = len(description.joints)
-    rest = settle(session)
+    rest = settle(session, keepalive=lambda: session.send_voltage([0.0] * n))
     sign, volts, (w_lo, w_hi) = pulse_plan(description.joints[k], yaml, rest[-1].counts[k],
                                            period_s)  # fmt: skip
     schedule = []
@@ -283,6 +287,3 @@ def run_checks(session, description, latency: Check | None = None) -> list[Check
 
 def _not_run(facts) -> list[Check]:
     return [Check("moves", y.name, UNKNOWN, "not run") for y in facts]
-
-
-__all__ = ["FAIL", "OK", "run_checks"]
