@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from guardid.capture.checks import counts_per_rad
+from guardid.capture.resume import link_lost, next_rest_index, resume_rows
 from guardid.capture.stop import CaptureStopped, StopRequest
 from guardid.errors import LinkError
 from guardid.link import Session
@@ -73,6 +74,8 @@ def capture(
     overwrite: bool = False,
     until: Callable[[], bool] | None = None,
     on_record: Callable[..., None] | None = None,
+    reconnect: Callable[[], Session] | None = None,
+    notify: Callable[[str], None] | None = None,
 ) -> CaptureResult:
     """Capture ``duration_s`` seconds of ``trajectory``; write ``log_path``.
 
@@ -92,6 +95,13 @@ def capture(
     existing ``log_path``. Raises :class:`LinkError` after closing the log when the link
     fails, :class:`LogWriteError` (after putting the robot idle) when the log cannot be
     written; the rows written until then stay in the file.
+
+    ``reconnect`` (if given, ``capture --reconnect``): when the link is lost mid-run it is
+    called to wait for the port, re-attach the session and handshake (it raises
+    :class:`LinkError` when the port does not come back in time or does not answer); the
+    run then goes on from the trajectory's next rest point (:mod:`guardid.capture.resume`),
+    the rows in between lost (a gap in the tick column), each reconnect said to ``notify``
+    and counted in the footer (``reconnects``, ``gaps``).
     """
     period = description.sample_period
     n_ticks = int(round(duration_s / period))
@@ -110,56 +120,67 @@ def capture(
     first_tick = None
     reached = 0  # ticks of the trajectory reached so far (an interrupted run's length)
     next_report = started
+    legs = _Legs(rows, reconnect is not None)
     try:
-        session.set_watchdog(0.25)
-        for j, joint in enumerate(description.joints):
-            if joint.pid is not None:
-                session.set_pid(j, joint.pid.kp, joint.pid.ki, joint.pid.kd)
-        for index, t in session.track(rows):
-            if not 0 <= index < n_ticks:
-                continue  # before the trajectory, or a tick past its end
-            if first_tick is None:
-                first_tick = t.tick - index
-            reached = max(reached, index + 1)
-            counts = np.asarray(t.counts)
-            q = counts / per_rad
-            sp = np.asarray(t.setpoint_counts) / per_rad
-            volts = np.asarray(t.voltage_mv) * 1e-3
-            amps = np.asarray(t.current_ma) * 1e-3
-            t_s = (t.tick - first_tick) * period
-            writer.write_row(t.tick, t_s, counts, q, volts, amps, sp, t.status)
-            if on_record is not None:
-                on_record(t.tick, t_s, counts, q, volts, amps, sp, t.status)
-            if on_row is not None:
-                on_row(t_s, q, volts, amps)
-            sq_err += (sp - q) ** 2
-            n_err += 1
-            now = time.monotonic()
-            if progress is not None and (now >= next_report or index == n_ticks - 1):
-                next_report = now + PROGRESS_EVERY_S
-                progress(_counters(session, writer.rows, index + 1, sq_err, n_err))
-            if until is not None and until():
-                ended, n_ticks = "identified", index + 1  # the ticks this run was to have
-                break
-            if stop is not None:
-                stop.check()  # after this tick's row is written, before the next tick
+        _configure(session, description)
+        while legs.rows is not None:
+            try:
+                for index, t in session.track(legs.rows):
+                    legs.last_tick = t.tick
+                    index += legs.resume_at - legs.lead  # the trajectory's row
+                    if not legs.resume_at <= index < n_ticks:
+                        continue  # before the trajectory (or its approach), or past its end
+                    if first_tick is None:
+                        first_tick = t.tick - index
+                    reached = max(reached, index + 1)
+                    counts = np.asarray(t.counts)
+                    q = counts / per_rad
+                    sp = np.asarray(t.setpoint_counts) / per_rad
+                    volts = np.asarray(t.voltage_mv) * 1e-3
+                    amps = np.asarray(t.current_ma) * 1e-3
+                    t_s = (t.tick - first_tick) * period
+                    writer.write_row(t.tick, t_s, counts, q, volts, amps, sp, t.status)
+                    if on_record is not None:
+                        on_record(t.tick, t_s, counts, q, volts, amps, sp, t.status)
+                    if on_row is not None:
+                        on_row(t_s, q, volts, amps)
+                    sq_err += (sp - q) ** 2
+                    n_err += 1
+                    now = time.monotonic()
+                    if progress is not None and (now >= next_report or index == n_ticks - 1):
+                        next_report = now + PROGRESS_EVERY_S
+                        progress(_counters(session, writer.rows, index + 1, sq_err, n_err))
+                    if until is not None and until():
+                        ended, n_ticks = "identified", index + 1  # the ticks this run was to have
+                        break
+                    if stop is not None:
+                        stop.check()  # after this tick's row is written, before the next tick
+                legs.rows = None
+            except LinkError as exc:
+                if reconnect is None or not link_lost(exc):
+                    raise
+                session = legs.resume(session, reconnect, exc, trajectory, description,
+                                      reached, n_ticks, notify)  # fmt: skip
+                if legs.rows is not None:
+                    _configure(session, description)
         _idle(session, stop)
     except (CaptureStopped, KeyboardInterrupt) as exc:
         ended, n_ticks = "interrupted", reached  # the ticks this run came to
         _idle(session, stop)
-        footer = _footer(session, writer.rows, n_ticks, ended, started)
+        footer = _footer(session, writer.rows, n_ticks, ended, started, legs)
         footer["signal"] = str(exc) if isinstance(exc, CaptureStopped) else "SIGINT"
         writer.close(footer)
         return _result(session, writer, n_ticks, sq_err, n_err, ended)
     except LinkError as exc:
         _idle(session, stop)
         ended = f"link error: {exc}"
-        writer.close(_footer(session, writer.rows, n_ticks, ended, started))
+        writer.close(_footer(session, writer.rows, n_ticks, ended, started, legs))
         raise LinkError(f"{exc} ({writer.rows} rows kept in {log_path})") from None
     except LogWriteError as exc:
         _idle(session, stop)  # the motors first, the file after
         try:
-            writer.close(_footer(session, writer.rows, n_ticks, f"log write error: {exc}", started))
+            ended = f"log write error: {exc}"
+            writer.close(_footer(session, writer.rows, n_ticks, ended, started, legs))
             footer = "footer written"
         except LogWriteError:
             footer = "no footer"
@@ -168,9 +189,9 @@ def capture(
         _idle(session, stop)
         with contextlib.suppress(LogWriteError):
             ended = f"error: {type(exc).__name__}: {exc}"
-            writer.close(_footer(session, writer.rows, n_ticks, ended, started))
+            writer.close(_footer(session, writer.rows, n_ticks, ended, started, legs))
         raise
-    writer.close(_footer(session, writer.rows, n_ticks, ended, started))
+    writer.close(_footer(session, writer.rows, n_ticks, ended, started, legs))
     return _result(session, writer, n_ticks, sq_err, n_err, ended)
 
 
@@ -199,12 +220,71 @@ def _counters(session: Session, rows: int, ticks: int, sq_err, n_err: int) -> di
     }
 
 
-def _footer(session: Session, rows: int, n_ticks: int, ended: str, started: float) -> dict:
+def _footer(session, rows: int, n_ticks: int, ended: str, started: float, legs=None) -> dict:
     st = session.stats
-    return {
+    footer = {
         "ended": ended,
         "ticks_expected": n_ticks,
         "wall_time_s": round(time.monotonic() - started, 3),
         "link": {**st.as_dict(), "framing_errors": st.framing_errors},
         "faults": [list(f) for f in session.faults],
     }
+    if legs is not None and legs.counted:
+        footer["reconnects"] = len(legs.gaps)
+        footer["gaps"] = legs.gaps
+    return footer
+
+
+def _configure(session: Session, description) -> None:
+    """The watchdog and the PID gains of the description (at the start, after a reconnect)."""
+    session.set_watchdog(0.25)
+    for j, joint in enumerate(description.joints):
+        if joint.pid is not None:
+            session.set_pid(j, joint.pid.kp, joint.pid.ki, joint.pid.kd)
+
+
+class _Legs:
+    """The run's legs: the setpoint ``rows`` of the current one (None once done), its
+    approach length ``lead`` and the trajectory row ``resume_at`` it takes up; the
+    reconnects' ``gaps`` (for the footer when ``counted``)."""
+
+    def __init__(self, rows, counted: bool) -> None:
+        self.rows, self.lead, self.resume_at = rows, 0, 0
+        self.counted = counted
+        self.gaps: list[dict] = []
+        self.last_tick: int | None = None
+
+    def resume(self, session, reconnect, exc, trajectory, description, reached, n_ticks,
+               notify) -> Session:  # fmt: skip
+        """Wait for the port, handshake, and plan the next leg (module resume)."""
+        session.finish()  # best effort: the port is gone, the robot's watchdog idles it
+        session = reconnect()
+        tick = session.ping()
+        if self.last_tick is not None and ((tick - self.last_tick) & 0xFFFFFFFF) >= 1 << 31:
+            raise LinkError(
+                f"port {session.name}: the robot restarted while the port was gone (its tick "
+                f"went back from {self.last_tick} to {tick}): its encoder zero is lost; not resumed"
+            )
+        previous = self.resume_at if self.gaps else None
+        resume_at = next_rest_index(trajectory, description, reached, previous)
+        if resume_at is None:
+            raise LinkError(f"{exc}; the trajectory has no rest point to resume from")
+        lost = None if self.last_tick is None else (tick - self.last_tick) & 0xFFFFFFFF
+        gap = {"after_row": reached, "resume_row": resume_at, "ticks_away": lost}
+        self.gaps.append(gap)
+        if resume_at >= n_ticks:
+            self.rows = None
+            return session
+        session.set_mode("idle")
+        session.start_stream()
+        counts = session.next_telemetry().counts
+        self.rows, self.lead = resume_rows(trajectory, description, counts, resume_at, n_ticks)
+        self.resume_at = resume_at
+        if notify is not None:
+            period = description.sample_period
+            away = "" if lost is None else f" after {lost * period:.3g} s"
+            notify(
+                f"{exc}; back{away}: resuming the trajectory at {resume_at * period:g} s "
+                "(its next rest point)"
+            )
+        return session

@@ -17,6 +17,8 @@ COMMANDS = [
      "Identify the robot's base parameters and motor constants from LOG [LOG ...]."),
     ("validate", "guardid.commands.identify", "validate",
      "Score parameter sets on runs LOG [LOG ...]: torque prediction error, all joints stacked."),
+    ("doctor", "guardid.commands.doctor", "doctor",
+     "Check a robot on the bench: wiring, sensors, link, watchdog, e-stop; one verdict each."),
     ("fake-port", "guardid.commands.fake_port", "fake_port",
      "Serve the emulated robot on a pseudo-terminal until SIGINT/SIGTERM."),
     ("flash", "guardid.commands.flash", "flash",

@@ -102,9 +102,22 @@ def _load_trajectory(path: str):
     "<joint>/q_rad, setpoint_rad, v_V, i_A, counts. Non-blocking: a datagram that cannot "
     "be sent is counted and skipped, never slowing the capture. docs/LIVE.md.",
 )
+@click.option(
+    "--reconnect",
+    "reconnect_s",
+    type=POSITIVE,
+    default=None,
+    help="When the port vanishes mid-capture (a bumped USB cable; the robot's watchdog "
+    "idles it), wait up to this long [s] for it to come back, handshake again and go on "
+    "from the trajectory's next rest point (a period's start), approached slowly from "
+    "where the robot rests; the rows in between are lost (a gap, which identify splits "
+    "runs at) and the footer counts reconnects. A robot that restarted meanwhile (its "
+    "tick went back: the encoder zero is lost) is not resumed. Without it (or when the "
+    "port is not back in time, or does not answer) the capture ends, rows kept, exit 3.",
+)
 def capture(
     port, baud, robot, trajectory_path, duration, periods, timeout, no_reset, output, force,
-    quiet, online, online_effort, until_std, stream_url,
+    quiet, online, online_effort, until_std, stream_url, reconnect_s,
 ):  # fmt: skip
     """Run the trajectory on the robot in closed loop and record telemetry to OUTPUT.
 
@@ -123,7 +136,7 @@ def capture(
             result, tracker, live, stream = _capture(
                 port, baud, robot, trajectory_path, duration, periods, timeout, output,
                 force, quiet, online, online_effort, stop, until_std, stream_url,
-                reset=not no_reset,
+                reset=not no_reset, reconnect_s=reconnect_s,
             )  # fmt: skip
         except CaptureStopped:
             end_line()
@@ -158,6 +171,7 @@ def capture(
 def _capture(
     port, baud, robot, trajectory_path, duration, periods, timeout, output, force, quiet,
     online, online_effort, stop, until_std=None, stream_url=None, reset=True,
+    reconnect_s=None,
 ):  # fmt: skip
     """Check everything, then capture; return (CaptureResult, online tracker or None,
     :class:`guardid.online.information.UntilStd` or None, :class:`guardid.live.udp.UdpStream`
@@ -219,6 +233,8 @@ def _capture(
             stream.close()
         raise
     session = Session(StopAwarePort(serial_port, stop), timeout_s=timeout)
+    reconnector = _Reconnector(session, serial_port, port_url, baud, reconnect_s, description,
+                               stop)  # fmt: skip
     try:
         try:
             info = connect(session, port_url, reset=reset)
@@ -252,9 +268,12 @@ def _capture(
             overwrite=force,
             until=None if live is None else live.done,
             on_record=None if stream is None else stream.send_row,
+            reconnect=None if reconnect_s is None else reconnector.reconnect,
+            notify=_notify,
         )
     finally:
-        serial_port.close()
+        for p in reconnector.ports:
+            p.close()
         if stream is not None:
             stream.close()
     return result, tracker, live, stream
@@ -267,6 +286,42 @@ def _stream(target, description):
     from guardid.live.udp import UdpStream
 
     return UdpStream(target, [j.name for j in description.joints])
+
+
+def _notify(message: str) -> None:
+    end_line()
+    click.echo(f"guardid: {message}", err=True)
+
+
+class _Reconnector:
+    """``capture --reconnect``: wait for the port, re-attach the session, handshake and
+    check INFO again; ``ports`` are every port opened (closed at the end)."""
+
+    def __init__(self, session, port, url, baud, within_s, description, stop) -> None:
+        self.session, self.ports, self.url, self.baud = session, [port], url, baud
+        self.within_s, self.description, self.stop = within_s, description, stop
+
+    def reconnect(self):
+        from guardid.capture.checks import check_info
+        from guardid.capture.stop import StopAwarePort
+        from guardid.errors import LinkError
+        from guardid.link.reconnect import wait_for_port
+
+        self.stop.check()
+        port = wait_for_port(
+            self.ports[-1], self.url, self.baud, self.within_s, check=self.stop.check
+        )
+        if port is None:
+            raise LinkError(f"port {self.url}: gone, not back within {self.within_s:g} s")
+        if port is not self.ports[-1]:
+            self.ports.append(port)
+        self.session.reattach(StopAwarePort(port, self.stop))
+        try:
+            info = self.session.handshake()
+        except LinkError as exc:
+            raise LinkError(f"{exc} (the port came back, the robot did not answer)") from None
+        check_info(info, self.description, self.url)
+        return self.session
 
 
 ROW_BYTES_BASE, ROW_BYTES_PER_JOINT = 30, 60

@@ -21,6 +21,8 @@ _FAULTS = {
     "flip": "bit flip probability [0..1]",
     "latency_ms": "FTDI-like latency timer [ms] (0 = off)",
     "disconnect_s": "disconnect after this simulated time [s]",
+    "reconnect_s": "with --disconnect-s: the pty comes back (a new one, see --link) after "
+    "this outage [s]; the robot runs on meanwhile",
     "payload_time": "attach the payload at this simulated time [s]",
     "payload_mass": "payload mass [kg]",
     "payload_com": "payload centre of mass x,y,z [m]",
@@ -30,6 +32,8 @@ _FAULTS = {
     "params": "serve a twin: the rigid body and friction of a params.yaml from guardid identify "
     "or a reference values file (docs/REPLAY.md)",
     "method": "with --params: the params file's method [default: its first]",
+    "wiring": "wiring faults, comma-separated kind:joint[=value] (encoder_reversed, "
+    "motor_reversed, current_offset=A, current_gain=G, cpr=COUNTS, stuck; guardid doctor)",
 }
 
 
@@ -98,6 +102,12 @@ class _Command(click.Command):
     show_default=True,
     help="Lock-step: host silence after its answer before a step [ms].",
 )
+@click.option(
+    "--link",
+    default=None,
+    help="Keep a symlink at this path to the pty (as /dev/serial/by-id/... does), moved "
+    "to the new pty when it comes back after --reconnect-s; removed at exit.",
+)
 @click.option("--device", "device_name", default=None, hidden=True, envvar=DEVICE_ENV)
 def fake_port(
     robot,
@@ -111,6 +121,7 @@ def fake_port(
     phase,
     idle_ms,
     settle_ms,
+    link,
     device_name,
     **faults,
 ):
@@ -129,7 +140,9 @@ def fake_port(
     options = parse_options(robot, raw, label=_flag)
     device = make_device(options.robot, options, name=device_name)
     engine = LinkEngine(device, options.faults, options.seed, name="fake-port")
-    server = PtyServer(engine, options.pacing, idle_s=idle_ms / 1000.0, settle_s=settle_ms / 1000.0)
+    server = PtyServer(
+        engine, options.pacing, idle_s=idle_ms / 1000.0, settle_s=settle_ms / 1000.0, link=link
+    )
     stop = []
 
     def on_signal(signum, frame):

@@ -1,8 +1,10 @@
 """The simulated-time core of the fake link, shared by ``sim://`` ports and the pty server.
 
 Time is an integer number of nanoseconds since the link started. Events, in order at
-equal times: the disconnect, the latency-timer flush, the device tick (tick k happens at
-k * tick period). Host writes reach the device at the current time.
+equal times: the disconnect (or the reconnect), the latency-timer flush, the device tick
+(tick k happens at k * tick period). Host writes reach the device at the current time.
+With a reconnect scheduled the device runs on while the link is down (its watchdog idles
+it), what it sends meanwhile is lost, and the link comes back at its time.
 """
 
 from __future__ import annotations
@@ -38,6 +40,11 @@ class LinkEngine:
         self._disconnect_ns = (
             None if faults.disconnect_s is None else round(faults.disconnect_s * 1e9)
         )
+        self._reconnect_ns = (
+            None
+            if faults.reconnect_s is None or self._disconnect_ns is None
+            else self._disconnect_ns + round(faults.reconnect_s * 1e9)
+        )
         self.disconnected = False
         self.rx = bytearray()  # delivered to the host, not yet read
         # no fault of any kind configured: bytes pass straight through, counted as the
@@ -62,10 +69,17 @@ class LinkEngine:
         """True when a disconnect is scheduled and has not happened yet."""
         return self._disconnect_ns is not None and not self.disconnected
 
+    @property
+    def reconnect_pending(self) -> bool:
+        """True while the link is down and will come back."""
+        return self.disconnected and self._reconnect_ns is not None
+
     def next_event_ns(self) -> int | None:
         """Time [ns] of the next event, or None when nothing will ever happen."""
         if self.disconnected:
-            return None
+            if self._reconnect_ns is None:
+                return None
+            return min((self.ticks + 1) * self.tick_ns, self._reconnect_ns)
         if self._latency is None and self._disconnect_ns is None:
             return (self.ticks + 1) * self.tick_ns  # a clean link: only device ticks
         times = [(self.ticks + 1) * self.tick_ns]
@@ -90,6 +104,14 @@ class LinkEngine:
         if t is None:
             return
         self.now_ns = max(self.now_ns, t)
+        if self.disconnected:  # a reconnect is due: the device runs on, unheard
+            if t >= self._reconnect_ns:
+                self._reconnect()
+            else:
+                self.ticks += 1
+                self.device.advance()
+                self.stats.bytes_lost_while_disconnected += len(self.device.take_output())
+            return
         if self._disconnect_ns is not None and t >= self._disconnect_ns:
             self._disconnect()
             return
@@ -102,15 +124,25 @@ class LinkEngine:
             self._emit(self.device.take_output())
 
     def advance_to(self, t_ns: int) -> None:
-        """Run every event due at or before ``t_ns``; then the clock reads ``t_ns``."""
+        """Run every event due at or before ``t_ns``; then the clock reads ``t_ns``. A
+        disconnect on the way ends the call there (the host must see it before a
+        reconnect)."""
+        was_down = self.disconnected
         while (e := self.next_event_ns()) is not None and e <= t_ns:
             self.step()
+            if self.disconnected and not was_down:
+                return
         self.now_ns = max(self.now_ns, t_ns)
 
     def advance_until_output(self, max_ns: int) -> None:
         """Run events until bytes reach the host, the link dies, or ``max_ns`` elapse."""
         start = self.now_ns
-        while not self.rx and (e := self.next_event_ns()) is not None and e - start <= max_ns:
+        while (
+            not self.rx
+            and not self.disconnected
+            and (e := self.next_event_ns()) is not None
+            and e - start <= max_ns
+        ):
             self.step()
 
     def tick_until_output(self, size: int, deadline_ns: int) -> bool:
@@ -183,6 +215,12 @@ class LinkEngine:
             self.rx += data
             if self._latency is not None:
                 self.stats.bursts.append((self.now_s, len(data)))
+
+    def _reconnect(self) -> None:
+        self.disconnected = False
+        self._disconnect_ns = self._reconnect_ns = None
+        self.stats.reconnected_at_s = self.now_s
+        self.rx.clear()
 
     def _disconnect(self) -> None:
         self.disconnected = True

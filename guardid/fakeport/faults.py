@@ -21,6 +21,8 @@ class FaultConfig:
     latency_s [s]: FTDI-like latency timer for device->host bytes (0 = off), with
     ``packet_bytes`` bytes released at once when that many accumulate;
     disconnect_s [s, simulated]: the link dies at that time (None = never);
+    reconnect_s [s, simulated]: and comes back this long after (None = never; the device
+    runs on meanwhile and what it sends is lost);
     upstream: also drop/flip host->device bytes.
     """
 
@@ -29,6 +31,7 @@ class FaultConfig:
     latency_s: float = 0.0
     packet_bytes: int = 62
     disconnect_s: float | None = None
+    reconnect_s: float | None = None
     upstream: bool = False
 
 
@@ -58,6 +61,8 @@ class FaultStats:
     up: DirectionStats = field(default_factory=DirectionStats)  # host -> device
     bursts: list[tuple[float, int]] = field(default_factory=list)  # (time [s], bytes)
     disconnected_at_s: float | None = None
+    reconnected_at_s: float | None = None
+    bytes_lost_while_disconnected: int = 0  # device -> host, sent with the link down
 
 
 class Corrupter:

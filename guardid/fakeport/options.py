@@ -2,13 +2,15 @@
 
 ``sim://<robot name or YAML path>?seed=1&pacing=lockstep|realtime|<factor>&noise=1|0
 &payload_time=30&payload_mass=1.0&payload_com=0.12,0.02,0&drop=1e-4&flip=1e-5
-&latency_ms=16&disconnect_s=40&firmware=py|c|avr&mcu=atmega328p|atmega2560&upstream=0|1
-&phase=0|1&start=COUNTS&supply=FRACTION&ripple=FRACTION&params=PARAMS.yaml&method=NAME
-&bootloader=optiboot|stk500v2``
+&latency_ms=16&disconnect_s=40&reconnect_s=3&firmware=py|c|avr&mcu=atmega328p|atmega2560
+&upstream=0|1&phase=0|1&start=COUNTS&supply=FRACTION&ripple=FRACTION&params=PARAMS.yaml
+&method=NAME&bootloader=optiboot|stk500v2&wiring=encoder_reversed:tilt,cpr:pan=96,...``
 
 ``bootloader`` (with ``firmware=avr``): the Arduino boot loader image runs from every reset
 before the firmware (optiboot on the ATmega328P, stk500v2 on the ATmega2560, the default
 ``mcu`` for it); the host's DTR pulse resets the MCU, as on a board's USB port.
+
+``wiring``: the robot's wiring faults (:mod:`guardid.plant.wiring`), for ``guardid doctor``.
 
 What a real robot's repeated runs vary, drawn from ``seed`` (each from its own stream, so the
 sensor noise draws stay those of the same seed without them):
@@ -42,6 +44,7 @@ from urllib.parse import parse_qsl
 
 from guardid.errors import LinkError
 from guardid.fakeport.faults import FaultConfig
+from guardid.plant.wiring import WiringFault, parse_wiring
 
 
 class SimUrlError(LinkError, ValueError):
@@ -72,6 +75,7 @@ class SimOptions:
     params: str | None = None  # params.yaml / reference values file: run the twin
     method: str | None = None  # the params file's method (default: its first)
     twin: object = None  # the loaded guardid.twin.Twin (set when the device is made)
+    wiring: tuple[WiringFault, ...] = ()  # guardid.plant.wiring faults
 
     @property
     def lockstep(self) -> bool:
@@ -167,6 +171,7 @@ _PARSERS: dict[str, Callable[[str], object]] = {
     "flip": _float(0.0, hi=1.0),
     "latency_ms": _float(0.0),
     "disconnect_s": _float(0.0, lo_open=True),
+    "reconnect_s": _float(0.0, lo_open=True),
     "firmware": _firmware,
     "mcu": _mcu,
     "bootloader": _bootloader,
@@ -177,6 +182,7 @@ _PARSERS: dict[str, Callable[[str], object]] = {
     "ripple": _float(0.0, hi=0.2),
     "params": _text,
     "method": _text,
+    "wiring": parse_wiring,
 }
 OPTION_NAMES = tuple(_PARSERS)
 
@@ -200,8 +206,11 @@ def parse_options(
         flip=values.pop("flip", 0.0),
         latency_s=latency / 1000.0,
         disconnect_s=values.pop("disconnect_s", None),
+        reconnect_s=values.pop("reconnect_s", None),
         upstream=values.pop("upstream", False),
     )
+    if faults.reconnect_s is not None and faults.disconnect_s is None:
+        raise SimUrlError(f"{label('reconnect_s')}: only with disconnect_s (the link's outage)")
     if "mcu" in values and values.get("firmware") != "avr":
         raise SimUrlError(f"{label('mcu')}: only with firmware=avr")
     if "method" in values and "params" not in values:

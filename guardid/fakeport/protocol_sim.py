@@ -138,6 +138,30 @@ class Serial(SerialBase):
                 raise Disconnected(f"{engine.name}: port disconnected")
             return data
 
+    def wait_link(self, timeout_s: float) -> bool:
+        """After a disconnect: wait up to ``timeout_s`` [s] (simulated in lock-step, the
+        device running on) for the link to come back (``reconnect_s``); True when it is."""
+        self._check_open()
+        engine = self.engine
+        if self.options.lockstep:
+            with self._lock:
+                deadline = engine.now_ns + round(timeout_s * 1e9)
+                while engine.reconnect_pending:
+                    e = engine.next_event_ns()
+                    if e is None or e > deadline:
+                        engine.advance_to(deadline)
+                        break
+                    engine.step()
+                return not engine.disconnected
+        end = time.monotonic() + timeout_s
+        with self._cond:
+            while engine.disconnected and engine.reconnect_pending:
+                remaining = end - time.monotonic()
+                if remaining <= 0:
+                    break
+                self._cond.wait(min(remaining, 0.05))
+            return not engine.disconnected
+
     def write(self, data) -> int:
         """Hand ``data`` to the device now (real-time: at the current wall-clock time)."""
         self._check_open()

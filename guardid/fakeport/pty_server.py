@@ -28,6 +28,11 @@ simulated time; from the firmware's first tick on the pacing rules above hold.
 Host bytes reach the device as soon as they arrive. Real-time pacing: events run on
 the wall clock (times the factor) from the host's first byte on. A simulated disconnect
 closes the master side, which the host sees as a SerialException on read.
+
+A disconnect with a reconnect (``reconnect_s``) is an unplugged cable: the pty goes away
+(and ``link``, a stable symlink to it such as /dev/serial/by-id/... gives, with it), the
+device runs on in real time (times the pacing factor) for the outage, then a new pty
+comes up, ``link`` points to it and the server serves it as a new host's.
 """
 
 from __future__ import annotations
@@ -59,23 +64,32 @@ class PtyServer:
         pacing: float | None = None,
         idle_s: float = 0.1,
         settle_s: float = 0.002,
+        link: str | None = None,
     ) -> None:
         self.engine = engine
         self.pacing = pacing
         self.idle_s = idle_s
         self.settle_s = settle_s
+        self.link = link
+        self.overflow = 0  # [bytes] discarded because the host did not read
+        self.resets = 0  #: device resets on a program's open
+        self._open_pty()
+
+    def _open_pty(self) -> None:
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)
         os.set_blocking(self.master, False)
         self.path = os.ttyname(self.slave)
-        self.overflow = 0  # [bytes] discarded because the host did not read
         self._out = bytearray()
-        resets = callable(getattr(engine.device, "reset", None))
+        resets = callable(getattr(self.engine.device, "reset", None))
         self._opens = OpenWatch(self.path) if resets else None
-        self.resets = 0  #: device resets on a program's open
+        if self.link is not None:
+            tmp = f"{self.link}.{os.getpid()}.tmp"
+            os.symlink(self.path, tmp)
+            os.replace(tmp, self.link)  # the link never missing while it moves
 
     def close(self) -> None:
-        """Close both ends (idempotent)."""
+        """Close both ends and remove ``link`` (idempotent)."""
         if self._opens is not None:
             self._opens.close()
         for fd in (self.master, self.slave):
@@ -85,6 +99,8 @@ class PtyServer:
                 except OSError:
                     pass
         self.master = self.slave = -1
+        if self.link is not None and os.path.islink(self.link):
+            os.unlink(self.link)
 
     def unread(self) -> int:
         """Bytes the host has not consumed yet (ours plus the slave's input queue)."""
@@ -92,7 +108,30 @@ class PtyServer:
         return len(self._out) + struct.unpack("i", buf)[0]
 
     def serve(self, should_stop: Callable[[], bool]) -> str:
-        """Serve until ``should_stop()`` or a simulated disconnect; return the reason."""
+        """Serve until ``should_stop()`` or a simulated disconnect not followed by a
+        reconnect; return the reason."""
+        while True:
+            reason = self._serve_host(should_stop)
+            if reason != "disconnected" or not self.engine.reconnect_pending:
+                return reason
+            if not self._outage(should_stop):
+                return "stopped"
+            self._open_pty()
+
+    def _outage(self, should_stop: Callable[[], bool]) -> bool:
+        """The cable is out: run the device in real time (times the pacing factor) until
+        the link is back (True) or ``should_stop()`` (False)."""
+        rate = self.pacing or 1.0
+        t0, sim0 = time.monotonic(), self.engine.now_ns
+        while self.engine.disconnected:
+            if should_stop():
+                return False
+            self.engine.advance_to(sim0 + round((time.monotonic() - t0) * rate * 1e9))
+            time.sleep(0.005)
+        self.engine.take()
+        return True
+
+    def _serve_host(self, should_stop: Callable[[], bool]) -> str:
         talked = answered = False
         last_host = last_step = time.monotonic()
         t0 = 0.0

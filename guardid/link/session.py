@@ -334,6 +334,14 @@ class Session:
             if tick >= last:
                 return
 
+    def reattach(self, port) -> None:
+        """Go on over ``port`` (the same robot's port opened again after an unplug): bytes
+        of a frame cut by the unplug are dropped, counters and sequence numbers go on."""
+        self.port = port
+        self._read_some = port.read_some if hasattr(type(port), "read_some") else None
+        self.parser.feed(b"\x00")  # end a frame cut by the unplug (counted as framing)
+        self.telemetry.clear()
+
     def finish(self) -> None:
         """Best effort: stop streaming and put the robot idle (used on every exit path)."""
         for command in (lambda: self.set_mode("idle"), self.stop_stream):

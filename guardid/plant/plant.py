@@ -38,6 +38,7 @@ from guardid.plant.joints import PlantError, joint_constants
 from guardid.plant.payload import payload_params
 from guardid.plant.sensors import adc_quantise, pwm_quantise
 from guardid.plant.variation import SupplyVariation, start_pose_q0
+from guardid.plant.wiring import wire
 
 DEFAULT_SUBSTEPS = 1
 """RK4 sub-steps per tick. One step per 15 ms tick keeps q within ~1e-7 rad of a tight
@@ -544,7 +545,7 @@ def make_plant(description, options) -> Plant:
     """Plant for the fake port from its options (seed, noise, payload_time/mass/com, phase:
     :func:`encoder_phase_q0`, start: :func:`start_pose_q0`, supply and ripple:
     :class:`SupplyVariation`; twin: a :class:`guardid.twin.Twin` run instead of the
-    description's rigid body)."""
+    description's rigid body), behind its ``wiring`` faults (:mod:`guardid.plant.wiring`)."""
     from guardid.plant.payload import PayloadChange
 
     payload = ()
@@ -557,7 +558,9 @@ def make_plant(description, options) -> Plant:
     supply = SupplyVariation(getattr(options, "supply", 0.0), getattr(options, "ripple", 0.0))
     twin = getattr(options, "twin", None)  # params=: the identified robot (guardid.twin)
     if twin is not None:
-        return Plant(twin.description, model=twin.model, substeps=twin.substeps,
-                     seed=options.seed, noise=options.noise, q0=q0, supply=supply)  # fmt: skip
-    return Plant(description, seed=options.seed, noise=options.noise, payload=payload, q0=q0,
-                 supply=supply)  # fmt: skip
+        plant = Plant(twin.description, model=twin.model, substeps=twin.substeps,
+                      seed=options.seed, noise=options.noise, q0=q0, supply=supply)  # fmt: skip
+    else:
+        plant = Plant(description, seed=options.seed, noise=options.noise, payload=payload,
+                      q0=q0, supply=supply)  # fmt: skip
+    return wire(plant, description, getattr(options, "wiring", ()))
