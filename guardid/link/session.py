@@ -21,7 +21,15 @@ import numpy as np
 import serial
 
 from guardid.errors import LinkError
-from guardid.protocol import ENUMS, MESSAGES, PROTOCOL_VERSION, Encoder, FrameParser, to_si
+from guardid.protocol import (
+    ENUMS,
+    MESSAGES,
+    MIN_PROTOCOL_VERSION,
+    PROTOCOL_VERSION,
+    Encoder,
+    FrameParser,
+    to_si,
+)
 
 M = MESSAGES
 _ERROR_NAMES = {v: k for k, v in ENUMS["error"].items()}
@@ -219,10 +227,11 @@ class Session:
         """HELLO -> INFO; check the protocol version. Returns INFO in SI (dict)."""
         frame = self.command(M["HELLO"](), lambda f, seq: type(f.msg) is M["INFO"])
         info = frame.msg
-        if info.protocol_version != PROTOCOL_VERSION:
+        if not MIN_PROTOCOL_VERSION <= info.protocol_version <= PROTOCOL_VERSION:
             raise LinkError(
                 f"port {self.name}: robot speaks protocol version {info.protocol_version}, "
-                f"guardid speaks {PROTOCOL_VERSION}: update the firmware or guardid"
+                f"guardid speaks {MIN_PROTOCOL_VERSION}..{PROTOCOL_VERSION}: update the "
+                "firmware or guardid"
             )
         self.info = to_si(info)
         return self.info
