@@ -50,14 +50,49 @@ def setpoint_counts(trajectory, description, n_ticks: int, start: int = 0) -> np
     return np.rint(trajectory.positions(t) * counts_per_rad(description)).astype(np.int64)
 
 
-def setpoint_rows(trajectory, description, n_ticks: int) -> LazyRows:
+def setpoint_rows(trajectory, description, n_ticks: int, feedforward=None) -> LazyRows:
     """The setpoints of :func:`setpoint_counts`, made a few thousand ticks at a time as the
-    capture reaches them (memory does not grow with ``--duration``)."""
+    capture reaches them (memory does not grow with ``--duration``); with ``feedforward``
+    (a :class:`guardid.feedforward.FeedforwardModel`) each row is followed by the joints'
+    feedforward voltages [mV] (:func:`guardid.feedforward.feedforward_mv`)."""
+    period = description.sample_period
 
     def make(start: int, stop: int) -> np.ndarray:
-        return setpoint_counts(trajectory, description, stop - start, start)
+        counts = setpoint_counts(trajectory, description, stop - start, start)
+        if feedforward is None:
+            return counts
+        from guardid.feedforward import feedforward_mv
+
+        return np.hstack([counts, feedforward_mv(feedforward, trajectory, period, start, stop)])
 
     return LazyRows(n_ticks, make)
+
+
+class TrackingError:
+    """Per joint the rms and the largest |setpoint - measured angle| [rad] over the rows."""
+
+    def __init__(self, n: int) -> None:
+        self.sq = np.zeros(n)
+        self.max = np.zeros(n)
+        self.n = 0
+
+    def add(self, sp_rad: np.ndarray, q_rad: np.ndarray) -> None:
+        err = sp_rad - q_rad
+        self.sq += err * err
+        np.maximum(self.max, np.abs(err), out=self.max)
+        self.n += 1
+
+    def rms(self) -> list[float]:
+        return [math.sqrt(s / self.n) if self.n else float("nan") for s in self.sq]
+
+    def footer(self, names) -> dict:
+        """``{joint: {rms_rad, max_rad}}`` (None without rows)."""
+        if not self.n:
+            return {name: None for name in names}
+        return {
+            name: {"rms_rad": float(r), "max_rad": float(m)}
+            for name, r, m in zip(names, self.rms(), self.max, strict=True)
+        }
 
 
 def capture(
@@ -72,6 +107,7 @@ def capture(
     stop: StopRequest | None = None,
     overwrite: bool = False,
     until: Callable[[], bool] | None = None,
+    feedforward=None,
 ) -> CaptureResult:
     """Capture ``duration_s`` seconds of ``trajectory``; write ``log_path``.
 
@@ -86,13 +122,17 @@ def capture(
     'interrupted' (the robot idle, the footer written). ``until`` (if given) is asked after
     every row's ``on_row``: True ends the capture early as 'identified' (``capture
     --until-std``), the robot put idle as at the end. ``overwrite`` False refuses an
-    existing ``log_path``. Raises :class:`LinkError` after closing the log when the link
-    fails, :class:`LogWriteError` (after putting the robot idle) when the log cannot be
-    written; the rows written until then stay in the file.
+    existing ``log_path``. ``feedforward`` (a :class:`guardid.feedforward.FeedforwardModel`,
+    checked with :func:`guardid.feedforward.check_supply`, the firmware's INFO having the
+    feedforward capability): each setpoint goes with its feedforward voltage (SETPOINT_FF).
+    The footer's ``tracking_error`` holds each joint's rms and largest |setpoint - angle|
+    [rad] over the rows, whatever ended the run. Raises :class:`LinkError` after closing the
+    log when the link fails, :class:`LogWriteError` (after putting the robot idle) when the
+    log cannot be written; the rows written until then stay in the file.
     """
     period = description.sample_period
     n_ticks = int(round(duration_s / period))
-    rows = setpoint_rows(trajectory, description, n_ticks)
+    rows = setpoint_rows(trajectory, description, n_ticks, feedforward)
     per_rad = counts_per_rad(description)
     names = [j.name for j in description.joints]
     started = time.monotonic()
@@ -101,8 +141,7 @@ def capture(
     except LogWriteError:
         _idle(session, stop)  # nothing moved yet; leave the robot idle all the same
         raise
-    sq_err = np.zeros(len(names))
-    n_err = 0
+    err = TrackingError(len(names))
     ended = "complete"
     first_tick = None
     reached = 0  # ticks of the trajectory reached so far (an interrupted run's length)
@@ -112,7 +151,7 @@ def capture(
         for j, joint in enumerate(description.joints):
             if joint.pid is not None:
                 session.set_pid(j, joint.pid.kp, joint.pid.ki, joint.pid.kd)
-        for index, t in session.track(rows):
+        for index, t in session.track(rows, feedforward=feedforward is not None):
             if not 0 <= index < n_ticks:
                 continue  # before the trajectory, or a tick past its end
             if first_tick is None:
@@ -127,12 +166,11 @@ def capture(
             writer.write_row(t.tick, t_s, counts, q, volts, amps, sp, t.status)
             if on_row is not None:
                 on_row(t_s, q, volts, amps)
-            sq_err += (sp - q) ** 2
-            n_err += 1
+            err.add(sp, q)
             now = time.monotonic()
             if progress is not None and (now >= next_report or index == n_ticks - 1):
                 next_report = now + PROGRESS_EVERY_S
-                progress(_counters(session, writer.rows, index + 1, sq_err, n_err))
+                progress(_counters(session, writer.rows, index + 1, err))
             if until is not None and until():
                 ended, n_ticks = "identified", index + 1  # the ticks this run was to have
                 break
@@ -142,19 +180,19 @@ def capture(
     except (CaptureStopped, KeyboardInterrupt) as exc:
         ended, n_ticks = "interrupted", reached  # the ticks this run came to
         _idle(session, stop)
-        footer = _footer(session, writer.rows, n_ticks, ended, started)
+        footer = _footer(session, n_ticks, ended, started, err, names)
         footer["signal"] = str(exc) if isinstance(exc, CaptureStopped) else "SIGINT"
         writer.close(footer)
-        return _result(session, writer, n_ticks, sq_err, n_err, ended)
+        return _result(session, writer, n_ticks, err, ended)
     except LinkError as exc:
         _idle(session, stop)
         ended = f"link error: {exc}"
-        writer.close(_footer(session, writer.rows, n_ticks, ended, started))
+        writer.close(_footer(session, n_ticks, ended, started, err, names))
         raise LinkError(f"{exc} ({writer.rows} rows kept in {log_path})") from None
     except LogWriteError as exc:
         _idle(session, stop)  # the motors first, the file after
         try:
-            writer.close(_footer(session, writer.rows, n_ticks, f"log write error: {exc}", started))
+            writer.close(_footer(session, n_ticks, f"log write error: {exc}", started, err, names))
             footer = "footer written"
         except LogWriteError:
             footer = "no footer"
@@ -163,10 +201,10 @@ def capture(
         _idle(session, stop)
         with contextlib.suppress(LogWriteError):
             ended = f"error: {type(exc).__name__}: {exc}"
-            writer.close(_footer(session, writer.rows, n_ticks, ended, started))
+            writer.close(_footer(session, n_ticks, ended, started, err, names))
         raise
-    writer.close(_footer(session, writer.rows, n_ticks, ended, started))
-    return _result(session, writer, n_ticks, sq_err, n_err, ended)
+    writer.close(_footer(session, n_ticks, ended, started, err, names))
+    return _result(session, writer, n_ticks, err, ended)
 
 
 def _idle(session: Session, stop: StopRequest | None) -> None:
@@ -176,13 +214,13 @@ def _idle(session: Session, stop: StopRequest | None) -> None:
     session.finish()
 
 
-def _result(session, writer, n_ticks, sq_err, n_err, ended) -> CaptureResult:
-    rms = [math.sqrt(s / n_err) if n_err else float("nan") for s in sq_err]
+def _result(session, writer, n_ticks, err, ended) -> CaptureResult:
+    rms = err.rms()
     link = {**session.stats.as_dict(), "framing_errors": session.stats.framing_errors}
     return CaptureResult(writer.rows, n_ticks, link, rms, ended)
 
 
-def _counters(session: Session, rows: int, ticks: int, sq_err, n_err: int) -> dict:
+def _counters(session: Session, rows: int, ticks: int, err: TrackingError) -> dict:
     st = session.stats
     return {
         "rows": rows,
@@ -190,11 +228,12 @@ def _counters(session: Session, rows: int, ticks: int, sq_err, n_err: int) -> di
         "lost": ticks - rows,
         "crc_errors": st.crc_errors,
         "framing_errors": st.framing_errors,
-        "tracking_rms_rad": [math.sqrt(s / max(n_err, 1)) for s in sq_err],
+        "tracking_rms_rad": [r if err.n else 0.0 for r in err.rms()],
     }
 
 
-def _footer(session: Session, rows: int, n_ticks: int, ended: str, started: float) -> dict:
+def _footer(session: Session, n_ticks: int, ended: str, started: float,
+            err: TrackingError, names) -> dict:  # fmt: skip
     st = session.stats
     return {
         "ended": ended,
@@ -202,4 +241,5 @@ def _footer(session: Session, rows: int, n_ticks: int, ended: str, started: floa
         "wall_time_s": round(time.monotonic() - started, 3),
         "link": {**st.as_dict(), "framing_errors": st.framing_errors},
         "faults": [list(f) for f in session.faults],
+        "tracking_error": err.footer(names),
     }

@@ -83,9 +83,22 @@ def _load_trajectory(path: str):
     "scale), at least one trajectory period; --duration / --periods is then the cap "
     f"[default cap: {UNTIL_STD_CAP_S:g} s]. Exit 4 when the cap comes first.",
 )
+@click.option(
+    "--feedforward",
+    "feedforward_path",
+    default=None,
+    help="params.yaml (guardid identify): stream with each setpoint the motor voltage the "
+    "trajectory needs by the identified model (its WLS, else LS, base parameters: rigid "
+    "body, rotor inertia, friction; its motors' R and Ke; V = R i + Ke N q', i = tau / "
+    "(N eta Kt) from the robot YAML's drive), evaluated on the trajectory's exact q, q', q'' "
+    "at the middle of each tick's period; the firmware adds it to its PID output before "
+    "the limits. Refused before anything moves (exit 2) when the trajectory needs more "
+    "than a motor's supply voltage, or when the firmware's INFO lacks the feedforward "
+    "capability (protocol version 2).",
+)
 def capture(
     port, baud, robot, trajectory_path, duration, periods, timeout, output, force, quiet,
-    online, online_effort, until_std,
+    online, online_effort, until_std, feedforward_path,
 ):  # fmt: skip
     """Run the trajectory on the robot in closed loop and record telemetry to OUTPUT.
 
@@ -103,7 +116,7 @@ def capture(
         try:
             result, tracker, live = _capture(
                 port, baud, robot, trajectory_path, duration, periods, timeout, output,
-                force, quiet, online, online_effort, stop, until_std,
+                force, quiet, online, online_effort, stop, until_std, feedforward_path,
             )  # fmt: skip
         except CaptureStopped:
             end_line()
@@ -135,12 +148,12 @@ def capture(
 
 def _capture(
     port, baud, robot, trajectory_path, duration, periods, timeout, output, force, quiet,
-    online, online_effort, stop, until_std=None,
+    online, online_effort, stop, until_std=None, feedforward_path=None,
 ):  # fmt: skip
     """Check everything, then capture; return (CaptureResult, online tracker or None,
     :class:`guardid.online.information.UntilStd` or None)."""
     from guardid.capture import capture as run_capture
-    from guardid.capture.checks import check_info, check_trajectory
+    from guardid.capture.checks import check_feedforward_capability, check_info, check_trajectory
     from guardid.capture.stop import StopAwarePort
     from guardid.commands.outputs import check_output, robot_file
     from guardid.link import Session, open_port
@@ -152,6 +165,8 @@ def _capture(
             "or leave --port out for the simulated robot"
         )
     inputs = [("--trajectory", trajectory_path), ("--robot", robot_file(robot))]
+    if feedforward_path is not None:
+        inputs.append(("--feedforward", feedforward_path))
     check_output(output, inputs, force=force)
     description = load_robot(robot)
     trajectory = _load_trajectory(trajectory_path)
@@ -163,6 +178,7 @@ def _capture(
         duration = (periods or 1) * trajectory.period
     _check_room(output, duration, description)
     check_trajectory(trajectory, description, duration, trajectory_path)
+    feedforward = _feedforward(feedforward_path, description, trajectory)
     tracker = _tracker(online, description, trajectory, online_effort)
     live = None
     if until_std is not None:
@@ -188,6 +204,8 @@ def _capture(
         try:
             info = session.handshake()
             check_info(info, description, port_url)
+            if feedforward is not None:
+                check_feedforward_capability(info, port_url)
         except BaseException:
             stop.disarm()
             session.finish()  # best effort: leave the robot idle whatever went wrong
@@ -202,6 +220,7 @@ def _capture(
             "sample_period_s": description.sample_period,
             "trajectory": trajectory.to_dict(),
             "duration_s": duration,
+            "feedforward": None if feedforward is None else feedforward.label,
             "start_time": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         }
         result = run_capture(
@@ -216,10 +235,22 @@ def _capture(
             stop=stop,
             overwrite=force,
             until=None if live is None else live.done,
+            feedforward=feedforward,
         )
     finally:
         serial_port.close()
     return result, tracker, live
+
+
+def _feedforward(path, description, trajectory):
+    """The --feedforward model, checked against every motor's supply (None without it)."""
+    if path is None:
+        return None
+    from guardid.feedforward import check_supply, load_feedforward
+
+    model = load_feedforward(path, description)
+    check_supply(model, trajectory, f"--feedforward {path}")
+    return model
 
 
 ROW_BYTES_BASE, ROW_BYTES_PER_JOINT = 30, 60
