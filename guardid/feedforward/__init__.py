@@ -15,6 +15,7 @@ from guardid.feedforward.model import (
     check_supply,
     feedforward_mv,
     load_feedforward,
+    supply_share,
 )
 
-__all__ = ["FeedforwardModel", "check_supply", "feedforward_mv", "load_feedforward"]
+__all__ = ["FeedforwardModel", "check_supply", "feedforward_mv", "load_feedforward", "supply_share"]

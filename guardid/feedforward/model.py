@@ -69,23 +69,30 @@ def feedforward_mv(model: FeedforwardModel, trajectory, period_s: float, start: 
     return np.rint(model.trajectory_voltage(trajectory, t) * 1000.0).astype(np.int64)
 
 
+def supply_share(model: FeedforwardModel, trajectory) -> tuple[float, int, float, float]:
+    """(largest |V| / supply [-], its joint, its voltage [V], its time [s]) of the
+    trajectory's feedforward over one period (the trajectory is periodic)."""
+    t = np.arange(0.0, trajectory.period, CHECK_STEP_S)
+    volts = model.trajectory_voltage(trajectory, t)
+    supply = np.array([j.drive.supply_voltage for j in model.description.joints])
+    share = np.abs(volts) / supply
+    k, j = np.unravel_index(np.argmax(share), share.shape)
+    return float(share[k, j]), int(j), float(volts[k, j]), float(t[k])
+
+
 def check_supply(model: FeedforwardModel, trajectory, source: str) -> float:
     """ConfigError (one line, naming the joint, the voltage, the time and the supply) unless
     the trajectory's feedforward stays within every motor's supply voltage over one period
     (the trajectory is periodic); returns the largest share of a supply it needs [-]."""
-    t = np.arange(0.0, trajectory.period, CHECK_STEP_S)
-    volts = model.trajectory_voltage(trajectory, t)
-    joints = model.description.joints
-    supply = np.array([j.drive.supply_voltage for j in joints])
-    share = np.abs(volts) / supply
-    k, j = np.unravel_index(np.argmax(share), share.shape)
-    if share[k, j] > 1.0:
+    share, j, volts, t = supply_share(model, trajectory)
+    if share > 1.0:
+        joint = model.description.joints[j]
         raise ConfigError(
-            f"{source}: joint {joints[j].name} needs {volts[k, j]:+.2f} V at t = {t[k]:.3f} s "
-            f"of the trajectory, beyond its {supply[j]:g} V supply (feedforward from "
-            f"{model.label}); slow the trajectory down (guardid excite); nothing moved"
+            f"{source}: joint {joint.name} needs {volts:+.2f} V at t = {t:.3f} s of the "
+            f"trajectory, beyond its {joint.drive.supply_voltage:g} V supply (feedforward "
+            f"from {model.label}); slow the trajectory down (guardid excite); nothing moved"
         )
-    return float(share[k, j])
+    return share
 
 
 def load_feedforward(path: str, description) -> FeedforwardModel:
