@@ -167,7 +167,8 @@ class FirmwareEmulator:
         self.last_host_tick = 0
         self.buffer: deque = deque()
         self.setpoint = [0] * self.n
-        self.feedforward_mv = [0] * self.n  # added to the PID output (SETPOINT_FF)
+        self._no_feedforward = [0] * self.n  # shared, never changed
+        self.feedforward_mv = self._no_feedforward  # added to the PID output (SETPOINT_FF)
         self.setpoint_hold = True  # no underrun before the first streamed setpoint
         self.voltage_cmd_mv = [0] * self.n
         self.applied_mv = [0] * self.n  # after limits and PWM, held over the next period
@@ -240,7 +241,7 @@ class FirmwareEmulator:
         self.mode = mode
         self.buffer.clear()
         self.setpoint = list(self.counts)
-        self.feedforward_mv = [0] * self.n
+        self.feedforward_mv = self._no_feedforward
         self.setpoint_hold = True  # no underrun before the first streamed setpoint
         self.voltage_cmd_mv = [0] * self.n
         for pid in self.pids:
@@ -258,13 +259,15 @@ class FirmwareEmulator:
 
     def _on_setpoint(self, frame) -> None:
         tick, flags, position = frame.msg
-        self._queue_setpoint(frame, tick, flags, position, [0] * self.n)
+        self._queue_setpoint(frame, tick, flags, position)
 
     def _on_setpoint_ff(self, frame) -> None:
         tick, flags, position, feedforward = frame.msg
         self._queue_setpoint(frame, tick, flags, position, list(feedforward))
 
-    def _queue_setpoint(self, frame, tick, flags, position, feedforward_mv) -> None:
+    def _queue_setpoint(self, frame, tick, flags, position, feedforward_mv=None) -> None:
+        """Queue (tick, position, hold) for SETPOINT, (tick, position, hold, feedforward [mV])
+        for SETPOINT_FF (a 3-tuple entry means no feedforward), or NAK."""
         buffer = self.buffer
         if len(position) != self.n:
             return self._nak(frame, "bad_joint")
@@ -279,6 +282,8 @@ class FirmwareEmulator:
             return self._nak(frame, "bad_value")
         if len(buffer) >= SETPOINT_DEPTH:
             return self._nak(frame, "buffer_full")
+        if feedforward_mv is None:
+            return buffer.append((tick, list(position), bool(flags & HOLD_BIT)))
         if any(abs(v) > s for v, s in zip(feedforward_mv, self.supply_mv, strict=True)):
             return self._nak(frame, "bad_value")
         buffer.append((tick, list(position), bool(flags & HOLD_BIT), feedforward_mv))
@@ -357,7 +362,9 @@ class FirmwareEmulator:
             buffer = self.buffer
             # tick_diff(buffer[0][0], tick) <= 0, inlined (serial u32 arithmetic)
             while buffer and ((buffer[0][0] - tick + 0x80000000) & TICK_MASK) <= 0x80000000:
-                _, self.setpoint, self.setpoint_hold, self.feedforward_mv = buffer.popleft()
+                entry = buffer.popleft()
+                self.setpoint, self.setpoint_hold = entry[1], entry[2]
+                self.feedforward_mv = entry[3] if len(entry) > 3 else self._no_feedforward
                 due = True
             if not due and not self.setpoint_hold:
                 status |= UNDERRUN_BIT
