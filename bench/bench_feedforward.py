@@ -15,8 +15,9 @@ Evaluator (independent of guardid's footer): numpy on the log's columns, the mea
 angle q_*_rad against the trajectory's exact angle at the row's time, rms per joint over all
 rows ("whole run") and over the rows after the first trajectory period ("steady": without
 the start, where the tilt has sagged under gravity while the robot was idle for the
-handshake, some 0.1-0.4 deg for the first second whatever the feedforward). Prints per excitation and firmware the median and the worst (largest) over seeds of
-each joint's rms [deg], the ratios PID / feedforward(identified) (worst = smallest) and
+handshake, some 0.1-0.4 deg for the first second whatever the feedforward). Prints per
+excitation and firmware the median and the worst (largest) over seeds of each joint's rms
+[deg], the ratios PID / feedforward(identified) (worst = smallest) and
 feedforward(identified) / feedforward(true) (worst = largest).
 
 Payload (--payload): a +MASS kg point mass on the arm at --payload-time s of plant time,
