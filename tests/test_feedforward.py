@@ -129,22 +129,35 @@ def _one_line_exit_2(res) -> str:
     return line
 
 
-@pytest.mark.parametrize("case", ["supply", "robot"])
+REFUSALS = {
+    "supply": "beyond its 12 V supply",
+    "robot": "robot: planar2, but the capture is on guard",
+    "nan": "methods.wls.values: not all finite",
+    "empty": "methods: empty",
+}
+
+
+@pytest.mark.parametrize("case", sorted(REFUSALS))
 def test_capture_refuses_before_the_port_opens(tmp_path, case):
-    """Beyond the supply, or a params file of another robot: one line, exit 2, no port
-    opened (no sim:// device made), no log."""
+    """Beyond the supply, a params file of another robot, with a NaN value or without any
+    method: one line, exit 2, no port opened (no sim:// device made), no log."""
     traj = SumOfSines.load(gentle_trajectory(tmp_path / "t.yaml"))
     path = _scaled(tmp_path, traj, FAST_TILT if case == "supply" else [1.0, 1.0], "x.yaml")
     params = _true_params(tmp_path)
+    data = yaml.safe_load(params.read_text())
     if case == "robot":
-        data = yaml.safe_load(params.read_text())
-        params.write_text(yaml.safe_dump({**data, "robot": "planar2"}))
+        data["robot"] = "planar2"
+    elif case == "nan":
+        data["methods"]["wls"]["values"][3] = float("nan")
+    elif case == "empty":
+        data["methods"] = {}
+    params.write_text(yaml.safe_dump(data))
     log = tmp_path / "run.csv"
     with witnessed() as robots:
         res = _run(["--trajectory", path, "--duration", 2, "--feedforward", params, "-o", log])
     line = _one_line_exit_2(res)
     assert f"--feedforward {params}" in line
-    assert ("beyond its 12 V supply" in line) if case == "supply" else ("planar2" in line)
+    assert REFUSALS[case] in line
     assert robots == [] and not log.exists()
 
 
