@@ -134,6 +134,7 @@ REFUSALS = {
     "robot": "robot: planar2, but the capture is on guard",
     "nan": "methods.wls.values: not all finite",
     "empty": "methods: empty",
+    "motor": "motors[1].resistance_ohm: 'x' is not a positive number",
 }
 
 
@@ -151,6 +152,8 @@ def test_capture_refuses_before_the_port_opens(tmp_path, case):
         data["methods"]["wls"]["values"][3] = float("nan")
     elif case == "empty":
         data["methods"] = {}
+    elif case == "motor":
+        data["motors"] = [{"joint": "pan"}, {"joint": "tilt", "resistance_ohm": "x"}]
     params.write_text(yaml.safe_dump(data))
     log = tmp_path / "run.csv"
     with witnessed() as robots:

@@ -121,9 +121,19 @@ def load_feedforward(path: str, description) -> FeedforwardModel:
     nominal = FeedforwardModel.from_description(description)
     r, ke = nominal.resistance_ohm.copy(), nominal.ke_v_s_per_rad.copy()
     names = [j.name for j in description.joints]
-    for entry in data.get("motors") or []:
+    for m, entry in enumerate(data.get("motors") or []):
         if isinstance(entry, dict) and entry.get("joint") in names:
             k = names.index(entry["joint"])
-            r[k] = float(entry.get("resistance_ohm", r[k]))
-            ke[k] = float(entry.get("ke_v_s_per_rad", ke[k]))
+            r[k] = _positive(entry, "resistance_ohm", r[k], f"{path}: motors[{m}]")
+            ke[k] = _positive(entry, "ke_v_s_per_rad", ke[k], f"{path}: motors[{m}]")
     return FeedforwardModel(description, theta, r, ke, f"{path} ({method.upper()})", model)
+
+
+def _positive(entry: dict, key: str, default: float, where: str) -> float:
+    """``entry[key]`` as a finite positive float (``default`` when absent); ConfigError."""
+    value = entry.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+        raise ConfigError(f"--feedforward {where}.{key}: {value!r} is not a positive number")
+    if not np.isfinite(value):
+        raise ConfigError(f"--feedforward {where}.{key}: {value!r} is not finite")
+    return float(value)
