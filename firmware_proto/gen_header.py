@@ -68,6 +68,7 @@ def _c_name(name: str) -> str:
 
 def _defines(spec) -> list[str]:
     out = [
+        f"#define GP_FRAME_VERSION {spec.frame_version}u",
         f"#define GP_PROTOCOL_VERSION {spec.version}u",
         f"#define GP_MAX_JOINTS {spec.max_joints}u",
         f"#define GP_TICK_PERIOD_US {spec.tick_period_us}u",

@@ -63,7 +63,7 @@ size_t gp_encode_frame(uint8_t msg_id, uint16_t seq, const uint8_t *payload, siz
     uint32_t crc;
     if (len > GP_MAX_PAYLOAD)
         return 0;
-    raw[0] = (uint8_t)GP_PROTOCOL_VERSION;
+    raw[0] = (uint8_t)GP_FRAME_VERSION;
     raw[1] = msg_id;
     gp_put_u16(raw + 2, seq);
     for (i = 0; i < len; ++i)
@@ -102,7 +102,7 @@ static int gp_segment(gp_parser_t *p, gp_frame_t *out)
         st->crc_errors++;
         return 0;
     }
-    if (p->raw[0] != GP_PROTOCOL_VERSION) {
+    if (p->raw[0] != GP_FRAME_VERSION) {
         st->bad_version++;
         return 0;
     }

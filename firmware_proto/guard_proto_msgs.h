@@ -32,7 +32,8 @@ static inline int32_t gp_sext(uint32_t v, unsigned bits)
     return (v & sign) ? -(int32_t)((~v & (sign - 1u))) - 1 : (int32_t)v;
 }
 
-#define GP_PROTOCOL_VERSION 1u
+#define GP_FRAME_VERSION 1u
+#define GP_PROTOCOL_VERSION 2u
 #define GP_MAX_JOINTS 4u
 #define GP_TICK_PERIOD_US 15000u
 #define GP_MAX_PAYLOAD 55u
@@ -48,6 +49,7 @@ static inline int32_t gp_sext(uint32_t v, unsigned bits)
 #define GP_MSG_ESTOP 0x09u /* Latch emergency stop - motors 0 V, mode idle, every moving command NAKed. */
 #define GP_MSG_CLEAR_ESTOP 0x0Au /* Clear a latched e-stop (and a tripped watchdog); mode stays idle. */
 #define GP_MSG_SET_WATCHDOG 0x0Bu /* Host-silence timeout in moving modes (default 250 ms, 0 rejected). */
+#define GP_MSG_SETPOINT_FF 0x0Cu /* SETPOINT with a feedforward voltage per joint, added to the PID output before the output limits from that setpoint's tick on (a SETPOINT resets it to 0). Same queue and NAKs as SETPOINT; NAK bad_value if |feedforward| > supply. Protocol version 2, capability feedforward. */
 #define GP_MSG_INFO 0x81u /* Answer to HELLO; also sent once after reset. */
 #define GP_MSG_PONG 0x82u /* Answer to PING. */
 #define GP_MSG_ACK 0x83u /* Command accepted. */
@@ -91,6 +93,7 @@ static inline int32_t gp_sext(uint32_t v, unsigned bits)
 #define GP_CAPABILITY_SETPOINT_BUFFER (1u << 2)
 #define GP_CAPABILITY_WATCHDOG (1u << 3)
 #define GP_CAPABILITY_VOLTAGE_MODE (1u << 4)
+#define GP_CAPABILITY_FEEDFORWARD (1u << 5)
 
 #define GP_SETPOINT_FLAGS_HOLD (1u << 0)
 
@@ -308,6 +311,58 @@ static inline int gp_unpack_set_watchdog(const uint8_t *p, size_t len, gp_set_wa
     if (len != GP_SET_WATCHDOG_FIXED_SIZE) return -1;
     m->timeout = (uint16_t)gp_get_u16(p + o);
     o += 2u;
+    return 0;
+}
+
+/* SETPOINT_FF (0x0C): SETPOINT with a feedforward voltage per joint, added to the PID output before the output limits from that setpoint's tick on (a SETPOINT resets it to 0). Same queue and NAKs as SETPOINT; NAK bad_value if |feedforward| > supply. Protocol version 2, capability feedforward. */
+#define GP_SETPOINT_FF_FIXED_SIZE 5u
+#define GP_SETPOINT_FF_JOINT_SIZE 6u
+typedef struct {
+    uint32_t tick; /* tick */
+    uint8_t flags;
+    int32_t position[GP_MAX_JOINTS]; /* count */
+    int16_t feedforward[GP_MAX_JOINTS]; /* V x 0.001 */
+    uint8_t n_joints; /* 1..GP_MAX_JOINTS, length of the arrays */
+} gp_setpoint_ff_t;
+static inline size_t gp_pack_setpoint_ff(const gp_setpoint_ff_t *m, uint8_t *p)
+{
+    size_t o = 0;
+    unsigned j;
+    gp_put_u32(p + o, (uint32_t)m->tick);
+    o += 4u;
+    gp_put_u8(p + o, (uint32_t)m->flags);
+    o += 1u;
+    for (j = 0; j < m->n_joints; ++j) {
+        gp_put_u32(p + o, (uint32_t)m->position[j]);
+        o += 4u;
+    }
+    for (j = 0; j < m->n_joints; ++j) {
+        gp_put_u16(p + o, (uint32_t)m->feedforward[j]);
+        o += 2u;
+    }
+    return o;
+}
+static inline int gp_unpack_setpoint_ff(const uint8_t *p, size_t len, gp_setpoint_ff_t *m)
+{
+    size_t o = 0;
+    unsigned j;
+    size_t nj;
+    if (len < GP_SETPOINT_FF_FIXED_SIZE + GP_SETPOINT_FF_JOINT_SIZE) return -1;
+    nj = (len - GP_SETPOINT_FF_FIXED_SIZE) / GP_SETPOINT_FF_JOINT_SIZE;
+    if (nj > GP_MAX_JOINTS || len != GP_SETPOINT_FF_FIXED_SIZE + nj * GP_SETPOINT_FF_JOINT_SIZE) return -1;
+    m->n_joints = (uint8_t)nj;
+    m->tick = (uint32_t)gp_get_u32(p + o);
+    o += 4u;
+    m->flags = (uint8_t)gp_get_u8(p + o);
+    o += 1u;
+    for (j = 0; j < m->n_joints; ++j) {
+        m->position[j] = (int32_t)gp_sext(gp_get_u32(p + o), 32u);
+        o += 4u;
+    }
+    for (j = 0; j < m->n_joints; ++j) {
+        m->feedforward[j] = (int16_t)gp_sext(gp_get_u16(p + o), 16u);
+        o += 2u;
+    }
     return 0;
 }
 
@@ -592,6 +647,7 @@ static inline int gp_payload_layout(uint8_t id, size_t *fixed, size_t *per_joint
     case GP_MSG_ESTOP: *fixed = 0u; *per_joint = 0u; return 0;
     case GP_MSG_CLEAR_ESTOP: *fixed = 0u; *per_joint = 0u; return 0;
     case GP_MSG_SET_WATCHDOG: *fixed = 2u; *per_joint = 0u; return 0;
+    case GP_MSG_SETPOINT_FF: *fixed = 5u; *per_joint = 6u; return 0;
     case GP_MSG_INFO: *fixed = 15u; *per_joint = 4u; return 0;
     case GP_MSG_PONG: *fixed = 8u; *per_joint = 0u; return 0;
     case GP_MSG_ACK: *fixed = 3u; *per_joint = 0u; return 0;
@@ -665,6 +721,16 @@ static inline int gp_flat_pack(uint8_t id, const int64_t *v, unsigned n_joints, 
         gp_set_watchdog_t m;
         m.timeout = (uint16_t)v[k++];
         return (int)gp_pack_set_watchdog(&m, p);
+    }
+    case GP_MSG_SETPOINT_FF: {
+        gp_setpoint_ff_t m;
+        if (n_joints < 1u || n_joints > GP_MAX_JOINTS) return -1;
+        m.n_joints = (uint8_t)n_joints;
+        m.tick = (uint32_t)v[k++];
+        m.flags = (uint8_t)v[k++];
+        for (j = 0; j < n_joints; ++j) m.position[j] = (int32_t)v[k++];
+        for (j = 0; j < n_joints; ++j) m.feedforward[j] = (int16_t)v[k++];
+        return (int)gp_pack_setpoint_ff(&m, p);
     }
     case GP_MSG_INFO: {
         gp_info_t m;
@@ -788,6 +854,16 @@ static inline int gp_flat_unpack(uint8_t id, const uint8_t *p, size_t len, int64
         gp_set_watchdog_t m;
         if (gp_unpack_set_watchdog(p, len, &m) != 0) return -1;
         v[k++] = m.timeout;
+        return (int)k;
+    }
+    case GP_MSG_SETPOINT_FF: {
+        gp_setpoint_ff_t m;
+        if (gp_unpack_setpoint_ff(p, len, &m) != 0) return -1;
+        v[k++] = m.tick;
+        v[k++] = m.flags;
+        *n_joints = m.n_joints;
+        for (j = 0; j < m.n_joints; ++j) v[k++] = m.position[j];
+        for (j = 0; j < m.n_joints; ++j) v[k++] = m.feedforward[j];
         return (int)k;
     }
     case GP_MSG_INFO: {

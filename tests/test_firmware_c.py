@@ -128,7 +128,8 @@ def test_pid_step_equals_fixed_pid_bit_for_bit():
                 sp, pos = _extreme(rng, -(2**31), 2**31 - 1), _extreme(rng, -(2**31), 2**31 - 1)
             else:
                 sp, pos = rng.randint(-3000, 3000), rng.randint(-3000, 3000)
-            assert c.step(sp, pos) == py.step(sp, pos), (gains, limit, sp, pos)
+            ff = rng.choice([0, rng.randint(-limit, limit), _extreme(rng, -32767, 32767)])
+            assert c.step(sp, pos, ff) == py.step(sp, pos, ff), (gains, limit, sp, pos, ff)
             assert (c.integral, c.saturated) == (py.integral, py.saturated)
 
 
@@ -345,6 +346,43 @@ def test_setpoint_buffer_late_full_order_hold_and_underrun_are_equal():
     assert _telemetry(t.step(1))[-1].setpoint == last.position
 
 
+def test_setpoint_ff_is_added_before_the_limits_alike_and_reset_by_setpoint():
+    """SETPOINT_FF: with zero gains the output is the feedforward alone, PWM-quantised
+    (8 bits of 12 V: 1500 mV -> duty round(1500 * 255 / 12000) = 32 -> 1506 mV), clamped
+    by nothing but the supply; the NAKs of SETPOINT plus bad_value beyond the supply; a
+    plain SETPOINT puts it back to 0; with gains it adds to the PID alike in C and Python."""
+    t = Twin(real_plant(8))
+    for j in range(2):
+        t.send(M["SET_PID"](j, 0, 0, 0))
+    assert _naks(t.send(M["SETPOINT_FF"](5, 0, (0, 0), (0, 0)))) == [ERR["wrong_mode"]]
+    t.send(M["SET_MODE"](MODE["position"]))
+    t.send(M["START_STREAM"](1))
+    t.step(2)
+    now = t.py.tick
+    assert _naks(t.send(M["SETPOINT_FF"](now + 1, 0, (0, 0), (1500, -700)))) == []
+    assert _naks(t.send(M["SETPOINT_FF"](now + 2, 0, (0, 0), (12001, 0)))) == [ERR["bad_value"]]
+    assert _naks(t.send(M["SETPOINT_FF"](now + 2, 0, (0, 0), (0, -12001)))) == [ERR["bad_value"]]
+    assert _naks(t.send(M["SETPOINT_FF"](now + 2, 0, (0,), (0,)))) == [ERR["bad_joint"]]
+    assert _naks(t.send(M["SETPOINT_FF"](now, 0, (0, 0), (0, 0)))) == [ERR["setpoint_late"]]
+    assert _naks(t.send(M["SETPOINT_FF"](now + 2, 0, (0, 0), (-12000, 12000)))) == []
+    assert _naks(t.send(M["SETPOINT"](now + 3, HOLD, (0, 0)))) == []
+    t.step(1)
+    assert t.py.applied_mv == [1506, -706]  # duty 32 and 15 of 255 (worked above)
+    t.step(1)
+    assert t.py.applied_mv == [-12000, 12000]  # the supply itself, not past it
+    t.step(1)
+    assert t.py.applied_mv == [0, 0]  # SETPOINT: feedforward back to 0
+    # with the guard's gains: PID + feedforward, equal in both, across many ticks
+    for j, joint in enumerate(GUARD.joints):
+        t.send(M["SET_PID"](j, *(round(g * 1e6) for g in (joint.pid.kp, joint.pid.ki,
+                                                           joint.pid.kd))))  # fmt: skip
+    now = t.py.tick
+    for k in range(1, 8):
+        t.send(M["SETPOINT_FF"](now + k, 0, (40 * k, -20 * k), (300 * k, -150 * k)))
+    seen = {tuple(t.py.applied_mv) for _ in range(10) if t.step(1)}
+    assert len(seen) > 5
+
+
 def test_voltage_mode_and_mode_changes_are_equal():
     t = Twin(real_plant(5))
     t.send(M["START_STREAM"](2))
@@ -407,7 +445,9 @@ def test_nak_codes_and_replies_are_equal():
     t.send(M["SET_WATCHDOG"](100))
     info = t.send(M["HELLO"]())[0]
     assert info.watchdog_timeout == 100 and info.setpoint_depth == 8
-    assert info.counts_per_rev == (24000, 48000) and info.capabilities == 0x1F
+    assert (
+        info.counts_per_rev == (24000, 48000) and info.capabilities == 0x3F
+    )  # bits 0..5, feedforward included
     t.send(M["SET_PID"](0, 80_000_000, 0, 2_000_000))
     t.send(M["START_STREAM"](3))
     assert [x.tick for x in _telemetry(t.step(10))] == [3, 6, 9]

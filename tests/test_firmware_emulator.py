@@ -146,13 +146,18 @@ def test_estop_stops_motors_at_once(rig):
         session.set_mode("position")
 
 
-def test_protocol_mismatch_is_a_clear_error(rig, monkeypatch):
+@pytest.mark.parametrize("version", [0, 3])
+def test_protocol_mismatch_is_a_clear_error(rig, version):
     session, fw, _ = rig
-    import guardid.link.session as mod
-
-    monkeypatch.setattr(mod, "PROTOCOL_VERSION", 99)
-    with pytest.raises(LinkError, match="protocol version 1, guardid speaks 99"):
+    fw.protocol_version = version  # older than the oldest guardid talks to, or newer
+    with pytest.raises(LinkError, match=f"protocol version {version}, guardid speaks 1..2"):
         session.handshake()
+
+
+def test_version_1_firmware_is_still_spoken_to(rig):
+    session, fw, _ = rig
+    fw.protocol_version = 1
+    assert session.handshake()["protocol_version"] == 1
 
 
 def test_joint_limit_blocks_motion_past_the_limit(rig):

@@ -174,7 +174,7 @@ void gf_sil_set_tick(gf_sil_t *s, uint32_t tick)
 
 /* Tests: the fixed-point helpers on raw values. pid[] = kp, ki, kd, integral, prev_error,
    limit_mv, saturated (in/out). */
-int32_t gf_sil_pid_step(int64_t *pid, int32_t setpoint, int32_t position)
+int32_t gf_sil_pid_step(int64_t *pid, int32_t setpoint, int32_t position, int32_t ff_mv)
 {
     gf_pid_t p;
     int32_t out;
@@ -185,7 +185,7 @@ int32_t gf_sil_pid_step(int64_t *pid, int32_t setpoint, int32_t position)
     p.prev_error = pid[4];
     p.limit_mv = (int32_t)pid[5];
     p.saturated = (uint8_t)pid[6];
-    out = gf_pid_step(&p, setpoint, position);
+    out = gf_pid_step(&p, setpoint, position, ff_mv);
     pid[3] = p.integral;
     pid[4] = p.prev_error;
     pid[6] = p.saturated;

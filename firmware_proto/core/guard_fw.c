@@ -244,8 +244,9 @@ void gf_pid_reset(gf_pid_t *pid)
 
 static int fits31(int64_t v) { return v >= -(int64_t)0x80000000 && v <= (int64_t)0x7FFFFFFF; }
 
-int32_t gf_pid_step(gf_pid_t *pid, int32_t setpoint, int32_t position)
+int32_t gf_pid_step(gf_pid_t *pid, int32_t setpoint, int32_t position, int32_t ff_mv)
 {
+    int64_t ff_q = (int64_t)ff_mv * ((int64_t)1 << GF_Q); /* feedforward, Q16 mV */
     int64_t error = (int64_t)setpoint - position;
     int64_t derr = error - pid->prev_error;
     int64_t lim_q = (int64_t)pid->limit_mv << GF_Q;
@@ -258,7 +259,7 @@ int32_t gf_pid_step(gf_pid_t *pid, int32_t setpoint, int32_t position)
             integral = lim_q;
         else if (integral < -lim_q)
             integral = -lim_q;
-        raw = pid->kp * error + integral + pid->kd * derr;
+        raw = pid->kp * error + integral + pid->kd * derr + ff_q;
     } else {
         /* exact 128-bit sums; |raw| is clamped to 2^62, far beyond any output limit */
         gf_u128_t acc, t;
@@ -269,6 +270,7 @@ int32_t gf_pid_step(gf_pid_t *pid, int32_t setpoint, int32_t position)
         s128_mul(pid->kd, derr, &t);
         u128_add(&acc, &t);
         s128_add_i64(&acc, integral);
+        s128_add_i64(&acc, ff_q);
         raw = s128_clamp(&acc, (int64_t)1 << 62);
     }
     out = raw >= 0 ? raw >> GF_Q : -((-raw) >> GF_Q);
@@ -347,7 +349,7 @@ static void send_info(gf_fw_t *fw)
     m.joint_count = fw->cfg.n_joints;
     m.capabilities = (uint16_t)(GP_CAPABILITY_CURRENT_SENSE | GP_CAPABILITY_VOLTAGE_SENSE |
                                 GP_CAPABILITY_SETPOINT_BUFFER | GP_CAPABILITY_WATCHDOG |
-                                GP_CAPABILITY_VOLTAGE_MODE);
+                                GP_CAPABILITY_VOLTAGE_MODE | GP_CAPABILITY_FEEDFORWARD);
     m.firmware_id = fw->cfg.firmware_id;
     m.tick_period = fw->cfg.tick_us;
     m.watchdog_timeout = fw->watchdog_ms;
@@ -398,6 +400,7 @@ static void enter_mode(gf_fw_t *fw, uint8_t mode)
     fw->setpoint_hold = 1u; /* no underrun before the first streamed setpoint */
     for (j = 0; j < fw->cfg.n_joints; ++j) {
         fw->setpoint[j] = fw->counts[j];
+        fw->feedforward_mv[j] = 0;
         fw->voltage_cmd_mv[j] = 0;
         gf_pid_reset(&fw->pid[j]);
         if (mode == GP_MODE_IDLE)
@@ -459,35 +462,66 @@ static void on_set_mode(gf_fw_t *fw, const gp_frame_t *f)
     send_ack(fw, f);
 }
 
-static void on_setpoint(gf_fw_t *fw, const gp_frame_t *f)
+/* Queue a SETPOINT (feedforward NULL: 0 V) or SETPOINT_FF, or NAK it. */
+static void queue_setpoint(gf_fw_t *fw, const gp_frame_t *f, const gp_setpoint_t *m,
+                           const int16_t *feedforward)
 {
-    gp_setpoint_t m;
     gf_setpoint_entry_t *e;
     unsigned j;
-    if (gp_unpack_setpoint(f->payload, f->payload_len, &m) != 0)
-        return;
-    if (m.n_joints != fw->cfg.n_joints) {
+    uint8_t ff_ok = 1u;
+    if (feedforward != NULL)
+        for (j = 0; j < m->n_joints && j < fw->cfg.n_joints; ++j)
+            if (feedforward[j] > fw->cfg.joint[j].supply_mv ||
+                feedforward[j] < -fw->cfg.joint[j].supply_mv)
+                ff_ok = 0u;
+    if (m->n_joints != fw->cfg.n_joints) {
         send_nak(fw, f, (uint8_t)GP_ERROR_BAD_JOINT);
     } else if (fw->estop) {
         send_nak(fw, f, (uint8_t)GP_ERROR_ESTOP_ACTIVE);
     } else if (fw->mode != GP_MODE_POSITION) {
         send_nak(fw, f, (uint8_t)GP_ERROR_WRONG_MODE);
-    } else if (tick_diff(m.tick, fw->tick) <= 0) {
+    } else if (tick_diff(m->tick, fw->tick) <= 0) {
         send_nak(fw, f, (uint8_t)GP_ERROR_SETPOINT_LATE);
     } else if (fw->q_len > 0u &&
-               tick_diff(m.tick, fw->queue[(fw->q_head + fw->q_len - 1u) % GF_SETPOINT_DEPTH]
+               tick_diff(m->tick, fw->queue[(fw->q_head + fw->q_len - 1u) % GF_SETPOINT_DEPTH]
                                      .tick) <= 0) {
         send_nak(fw, f, (uint8_t)GP_ERROR_BAD_VALUE);
     } else if (fw->q_len >= GF_SETPOINT_DEPTH) {
         send_nak(fw, f, (uint8_t)GP_ERROR_BUFFER_FULL);
+    } else if (!ff_ok) {
+        send_nak(fw, f, (uint8_t)GP_ERROR_BAD_VALUE);
     } else {
         e = &fw->queue[(fw->q_head + fw->q_len) % GF_SETPOINT_DEPTH];
-        e->tick = m.tick;
-        e->hold = (uint8_t)((m.flags & GP_SETPOINT_FLAGS_HOLD) != 0u);
-        for (j = 0; j < fw->cfg.n_joints; ++j)
-            e->position[j] = m.position[j];
+        e->tick = m->tick;
+        e->hold = (uint8_t)((m->flags & GP_SETPOINT_FLAGS_HOLD) != 0u);
+        for (j = 0; j < fw->cfg.n_joints; ++j) {
+            e->position[j] = m->position[j];
+            e->feedforward_mv[j] = feedforward != NULL ? feedforward[j] : (int16_t)0;
+        }
         fw->q_len++;
     }
+}
+
+static void on_setpoint(gf_fw_t *fw, const gp_frame_t *f)
+{
+    gp_setpoint_t m;
+    if (gp_unpack_setpoint(f->payload, f->payload_len, &m) == 0)
+        queue_setpoint(fw, f, &m, NULL);
+}
+
+static void on_setpoint_ff(gf_fw_t *fw, const gp_frame_t *f)
+{
+    gp_setpoint_ff_t m;
+    gp_setpoint_t sp;
+    unsigned j;
+    if (gp_unpack_setpoint_ff(f->payload, f->payload_len, &m) != 0)
+        return;
+    sp.tick = m.tick;
+    sp.flags = m.flags;
+    sp.n_joints = m.n_joints;
+    for (j = 0; j < m.n_joints; ++j)
+        sp.position[j] = m.position[j];
+    queue_setpoint(fw, f, &sp, m.feedforward);
 }
 
 static void on_set_voltage(gf_fw_t *fw, const gp_frame_t *f)
@@ -568,6 +602,9 @@ static void handle(gf_fw_t *fw, const gp_frame_t *f)
         break;
     case GP_MSG_SETPOINT:
         on_setpoint(fw, f);
+        break;
+    case GP_MSG_SETPOINT_FF:
+        on_setpoint_ff(fw, f);
         break;
     case GP_MSG_SET_VOLTAGE:
         on_set_voltage(fw, f);
@@ -682,8 +719,10 @@ void gf_tick(gf_fw_t *fw)
         uint8_t due = 0u;
         while (fw->q_len > 0u && tick_diff(fw->queue[fw->q_head].tick, fw->tick) <= 0) {
             const gf_setpoint_entry_t *e = &fw->queue[fw->q_head];
-            for (j = 0; j < n; ++j)
+            for (j = 0; j < n; ++j) {
                 fw->setpoint[j] = e->position[j];
+                fw->feedforward_mv[j] = e->feedforward_mv[j];
+            }
             fw->setpoint_hold = e->hold;
             fw->q_head = (uint8_t)((fw->q_head + 1u) % GF_SETPOINT_DEPTH);
             fw->q_len--;
@@ -692,7 +731,8 @@ void gf_tick(gf_fw_t *fw)
         if (!due && !fw->setpoint_hold)
             status |= GP_STATUS_SETPOINT_UNDERRUN;
         for (j = 0; j < n; ++j) {
-            out[j] = gf_pid_step(&fw->pid[j], fw->setpoint[j], fw->counts[j]);
+            out[j] = gf_pid_step(&fw->pid[j], fw->setpoint[j], fw->counts[j],
+                                 fw->feedforward_mv[j]);
             if (fw->pid[j].saturated)
                 status |= (uint16_t)(GP_STATUS_SATURATED_J0 << j);
         }

@@ -81,6 +81,7 @@ typedef struct {
     uint32_t tick;
     uint8_t hold;
     int32_t position[GF_MAX_JOINTS];
+    int16_t feedforward_mv[GF_MAX_JOINTS]; /* SETPOINT_FF; 0 for SETPOINT */
 } gf_setpoint_entry_t;
 
 typedef struct {
@@ -90,6 +91,7 @@ typedef struct {
     gf_pid_t pid[GF_MAX_JOINTS];
     gf_setpoint_entry_t queue[GF_SETPOINT_DEPTH];
     int32_t setpoint[GF_MAX_JOINTS];
+    int16_t feedforward_mv[GF_MAX_JOINTS]; /* added to the PID output, before its limit */
     int32_t counts[GF_MAX_JOINTS];
     int32_t voltage_cmd_mv[GF_MAX_JOINTS];
     int32_t applied_mv[GF_MAX_JOINTS];
@@ -145,8 +147,9 @@ int gf_wants_time(const gf_fw_t *fw);
 void gf_pid_gains_q16(int32_t kp_uv, int32_t ki_uv, int32_t kd_uv, uint32_t counts_per_rev,
                       uint32_t tick_us, int64_t out[3]);
 void gf_pid_reset(gf_pid_t *pid);
-/* One PID step: output [mV] clamped to +-limit_mv; sets pid->saturated. */
-int32_t gf_pid_step(gf_pid_t *pid, int32_t setpoint, int32_t position);
+/* One PID step plus the feedforward [mV] (|ff| <= 32767): output [mV] clamped to
+   +-limit_mv; sets pid->saturated. */
+int32_t gf_pid_step(gf_pid_t *pid, int32_t setpoint, int32_t position, int32_t ff_mv);
 /* PWM quantisation: the voltage [mV] of the duty nearest to mv; *duty = its magnitude. */
 int32_t gf_pwm_quantise(int32_t mv, int32_t supply_mv, uint8_t pwm_bits, uint16_t *duty);
 

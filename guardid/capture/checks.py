@@ -79,3 +79,15 @@ def check_info(info: dict, description, port: str) -> None:
     missing = [c for c in NEEDED_CAPABILITIES if not info["capabilities"] >> bits[c] & 1]
     if missing:
         raise ConfigError(f"port {port}: the robot lacks {', '.join(missing)} (INFO capabilities)")
+
+
+def check_feedforward_capability(info: dict, port: str) -> None:
+    """ConfigError unless the robot's INFO has the feedforward capability (SETPOINT_FF,
+    protocol version 2): older firmware is captured without --feedforward."""
+    if not info["capabilities"] >> ENUMS["capability"]["feedforward"] & 1:
+        raise ConfigError(
+            f"port {port}: the robot's firmware (protocol version {info['protocol_version']}) "
+            "lacks the feedforward capability (INFO capabilities bit "
+            f"{ENUMS['capability']['feedforward']}); update it, or capture without "
+            "--feedforward; nothing moved"
+        )

@@ -51,14 +51,49 @@ def setpoint_counts(trajectory, description, n_ticks: int, start: int = 0) -> np
     return np.rint(trajectory.positions(t) * counts_per_rad(description)).astype(np.int64)
 
 
-def setpoint_rows(trajectory, description, n_ticks: int) -> LazyRows:
+def setpoint_rows(trajectory, description, n_ticks: int, feedforward=None) -> LazyRows:
     """The setpoints of :func:`setpoint_counts`, made a few thousand ticks at a time as the
-    capture reaches them (memory does not grow with ``--duration``)."""
+    capture reaches them (memory does not grow with ``--duration``); with ``feedforward``
+    (a :class:`guardid.feedforward.FeedforwardModel`) each row is followed by the joints'
+    feedforward voltages [mV] (:func:`guardid.feedforward.feedforward_mv`)."""
+    period = description.sample_period
 
     def make(start: int, stop: int) -> np.ndarray:
-        return setpoint_counts(trajectory, description, stop - start, start)
+        counts = setpoint_counts(trajectory, description, stop - start, start)
+        if feedforward is None:
+            return counts
+        from guardid.feedforward import feedforward_mv
+
+        return np.hstack([counts, feedforward_mv(feedforward, trajectory, period, start, stop)])
 
     return LazyRows(n_ticks, make)
+
+
+class TrackingError:
+    """Per joint the rms and the largest |setpoint - measured angle| [rad] over the rows."""
+
+    def __init__(self, n: int) -> None:
+        self.sq = np.zeros(n)
+        self.max = np.zeros(n)
+        self.n = 0
+
+    def add(self, sp_rad: np.ndarray, q_rad: np.ndarray) -> None:
+        err = sp_rad - q_rad
+        self.sq += err * err
+        np.maximum(self.max, np.abs(err), out=self.max)
+        self.n += 1
+
+    def rms(self) -> list[float]:
+        return [math.sqrt(s / self.n) if self.n else float("nan") for s in self.sq]
+
+    def footer(self, names) -> dict:
+        """``{joint: {rms_rad, max_rad}}`` (None without rows)."""
+        if not self.n:
+            return {name: None for name in names}
+        return {
+            name: {"rms_rad": float(r), "max_rad": float(m)}
+            for name, r, m in zip(names, self.rms(), self.max, strict=True)
+        }
 
 
 def capture(
@@ -76,6 +111,7 @@ def capture(
     on_record: Callable[..., None] | None = None,
     reconnect: Callable[[], Session] | None = None,
     notify: Callable[[str], None] | None = None,
+    feedforward=None,
 ) -> CaptureResult:
     """Capture ``duration_s`` seconds of ``trajectory``; write ``log_path``.
 
@@ -92,9 +128,13 @@ def capture(
     'interrupted' (the robot idle, the footer written). ``until`` (if given) is asked after
     every row's ``on_row``: True ends the capture early as 'identified' (``capture
     --until-std``), the robot put idle as at the end. ``overwrite`` False refuses an
-    existing ``log_path``. Raises :class:`LinkError` after closing the log when the link
-    fails, :class:`LogWriteError` (after putting the robot idle) when the log cannot be
-    written; the rows written until then stay in the file.
+    existing ``log_path``. ``feedforward`` (a :class:`guardid.feedforward.FeedforwardModel`,
+    checked with :func:`guardid.feedforward.check_supply`, the firmware's INFO having the
+    feedforward capability): each setpoint goes with its feedforward voltage (SETPOINT_FF).
+    The footer's ``tracking_error`` holds each joint's rms and largest |setpoint - angle|
+    [rad] over the rows, whatever ended the run. Raises :class:`LinkError` after closing the
+    log when the link fails, :class:`LogWriteError` (after putting the robot idle) when the
+    log cannot be written; the rows written until then stay in the file.
 
     ``reconnect`` (if given, ``capture --reconnect``): when the link is lost mid-run it is
     called to wait for the port, re-attach the session and handshake (it raises
@@ -105,7 +145,10 @@ def capture(
     """
     period = description.sample_period
     n_ticks = int(round(duration_s / period))
-    rows = setpoint_rows(trajectory, description, n_ticks)
+    if feedforward is not None and reconnect is not None:
+        raise ValueError("capture: feedforward with reconnect is not supported (a resumed "
+                         "leg's approach has no feedforward)")  # fmt: skip
+    rows = setpoint_rows(trajectory, description, n_ticks, feedforward)
     per_rad = counts_per_rad(description)
     names = [j.name for j in description.joints]
     started = time.monotonic()
@@ -114,8 +157,7 @@ def capture(
     except LogWriteError:
         _idle(session, stop)  # nothing moved yet; leave the robot idle all the same
         raise
-    sq_err = np.zeros(len(names))
-    n_err = 0
+    err = TrackingError(len(names))
     ended = "complete"
     first_tick = None
     reached = 0  # ticks of the trajectory reached so far (an interrupted run's length)
@@ -125,7 +167,7 @@ def capture(
         _configure(session, description)
         while legs.rows is not None:
             try:
-                for index, t in session.track(legs.rows):
+                for index, t in session.track(legs.rows, feedforward=feedforward is not None):
                     legs.last_tick = t.tick
                     index += legs.resume_at - legs.lead  # the trajectory's row
                     if not legs.resume_at <= index < n_ticks:
@@ -144,12 +186,11 @@ def capture(
                         on_record(t.tick, t_s, counts, q, volts, amps, sp, t.status)
                     if on_row is not None:
                         on_row(t_s, q, volts, amps)
-                    sq_err += (sp - q) ** 2
-                    n_err += 1
+                    err.add(sp, q)
                     now = time.monotonic()
                     if progress is not None and (now >= next_report or index == n_ticks - 1):
                         next_report = now + PROGRESS_EVERY_S
-                        progress(_counters(session, writer.rows, index + 1, sq_err, n_err))
+                        progress(_counters(session, writer.rows, index + 1, err))
                     if until is not None and until():
                         ended, n_ticks = "identified", index + 1  # the ticks this run was to have
                         break
@@ -167,20 +208,20 @@ def capture(
     except (CaptureStopped, KeyboardInterrupt) as exc:
         ended, n_ticks = "interrupted", reached  # the ticks this run came to
         _idle(session, stop)
-        footer = _footer(session, writer.rows, n_ticks, ended, started, legs)
+        footer = _footer(session, n_ticks, ended, started, err, names, legs)
         footer["signal"] = str(exc) if isinstance(exc, CaptureStopped) else "SIGINT"
         writer.close(footer)
-        return _result(session, writer, n_ticks, sq_err, n_err, ended)
+        return _result(session, writer, n_ticks, err, ended)
     except LinkError as exc:
         _idle(session, stop)
         ended = f"link error: {exc}"
-        writer.close(_footer(session, writer.rows, n_ticks, ended, started, legs))
+        writer.close(_footer(session, n_ticks, ended, started, err, names, legs))
         raise LinkError(f"{exc} ({writer.rows} rows kept in {log_path})") from None
     except LogWriteError as exc:
         _idle(session, stop)  # the motors first, the file after
         try:
             ended = f"log write error: {exc}"
-            writer.close(_footer(session, writer.rows, n_ticks, ended, started, legs))
+            writer.close(_footer(session, n_ticks, ended, started, err, names, legs))
             footer = "footer written"
         except LogWriteError:
             footer = "no footer"
@@ -189,10 +230,10 @@ def capture(
         _idle(session, stop)
         with contextlib.suppress(LogWriteError):
             ended = f"error: {type(exc).__name__}: {exc}"
-            writer.close(_footer(session, writer.rows, n_ticks, ended, started, legs))
+            writer.close(_footer(session, n_ticks, ended, started, err, names, legs))
         raise
-    writer.close(_footer(session, writer.rows, n_ticks, ended, started, legs))
-    return _result(session, writer, n_ticks, sq_err, n_err, ended)
+    writer.close(_footer(session, n_ticks, ended, started, err, names, legs))
+    return _result(session, writer, n_ticks, err, ended)
 
 
 def _idle(session: Session, stop: StopRequest | None) -> None:
@@ -202,13 +243,13 @@ def _idle(session: Session, stop: StopRequest | None) -> None:
     session.finish()
 
 
-def _result(session, writer, n_ticks, sq_err, n_err, ended) -> CaptureResult:
-    rms = [math.sqrt(s / n_err) if n_err else float("nan") for s in sq_err]
+def _result(session, writer, n_ticks, err, ended) -> CaptureResult:
+    rms = err.rms()
     link = {**session.stats.as_dict(), "framing_errors": session.stats.framing_errors}
     return CaptureResult(writer.rows, n_ticks, link, rms, ended)
 
 
-def _counters(session: Session, rows: int, ticks: int, sq_err, n_err: int) -> dict:
+def _counters(session: Session, rows: int, ticks: int, err: TrackingError) -> dict:
     st = session.stats
     return {
         "rows": rows,
@@ -216,11 +257,12 @@ def _counters(session: Session, rows: int, ticks: int, sq_err, n_err: int) -> di
         "lost": ticks - rows,
         "crc_errors": st.crc_errors,
         "framing_errors": st.framing_errors,
-        "tracking_rms_rad": [math.sqrt(s / max(n_err, 1)) for s in sq_err],
+        "tracking_rms_rad": [r if err.n else 0.0 for r in err.rms()],
     }
 
 
-def _footer(session, rows: int, n_ticks: int, ended: str, started: float, legs=None) -> dict:
+def _footer(session: Session, n_ticks: int, ended: str, started: float,
+            err: TrackingError, names, legs=None) -> dict:  # fmt: skip
     st = session.stats
     footer = {
         "ended": ended,
@@ -228,6 +270,7 @@ def _footer(session, rows: int, n_ticks: int, ended: str, started: float, legs=N
         "wall_time_s": round(time.monotonic() - started, 3),
         "link": {**st.as_dict(), "framing_errors": st.framing_errors},
         "faults": [list(f) for f in session.faults],
+        "tracking_error": err.footer(names),
     }
     if legs is not None and legs.counted:
         footer["reconnects"] = len(legs.gaps)

@@ -115,9 +115,22 @@ def _load_trajectory(path: str):
     "tick went back: the encoder zero is lost) is not resumed. Without it (or when the "
     "port is not back in time, or does not answer) the capture ends, rows kept, exit 3.",
 )
+@click.option(
+    "--feedforward",
+    "feedforward_path",
+    default=None,
+    help="params.yaml (guardid identify): stream with each setpoint the motor voltage the "
+    "trajectory needs by the identified model (its WLS, else LS, base parameters: rigid "
+    "body, rotor inertia, friction; its motors' R and Ke; V = R i + Ke N q', i = tau / "
+    "(N eta Kt) from the robot YAML's drive), evaluated on the trajectory's exact q, q', q'' "
+    "at the middle of each tick's period; the firmware adds it to its PID output before "
+    "the limits. Refused before anything moves (exit 2) when the trajectory needs more "
+    "than a motor's supply voltage, or when the firmware's INFO lacks the feedforward "
+    "capability (protocol version 2).",
+)
 def capture(
     port, baud, robot, trajectory_path, duration, periods, timeout, no_reset, output, force,
-    quiet, online, online_effort, until_std, stream_url, reconnect_s,
+    quiet, online, online_effort, until_std, stream_url, reconnect_s, feedforward_path,
 ):  # fmt: skip
     """Run the trajectory on the robot in closed loop and record telemetry to OUTPUT.
 
@@ -137,6 +150,7 @@ def capture(
                 port, baud, robot, trajectory_path, duration, periods, timeout, output,
                 force, quiet, online, online_effort, stop, until_std, stream_url,
                 reset=not no_reset, reconnect_s=reconnect_s,
+                feedforward_path=feedforward_path,
             )  # fmt: skip
         except CaptureStopped:
             end_line()
@@ -171,13 +185,13 @@ def capture(
 def _capture(
     port, baud, robot, trajectory_path, duration, periods, timeout, output, force, quiet,
     online, online_effort, stop, until_std=None, stream_url=None, reset=True,
-    reconnect_s=None,
+    reconnect_s=None, feedforward_path=None,
 ):  # fmt: skip
     """Check everything, then capture; return (CaptureResult, online tracker or None,
     :class:`guardid.online.information.UntilStd` or None, :class:`guardid.live.udp.UdpStream`
     or None)."""
     from guardid.capture import capture as run_capture
-    from guardid.capture.checks import check_info, check_trajectory
+    from guardid.capture.checks import check_feedforward_capability, check_info, check_trajectory
     from guardid.capture.stop import StopAwarePort
     from guardid.commands.outputs import check_output, robot_file
     from guardid.link import Session, open_port
@@ -189,12 +203,19 @@ def _capture(
             "--port: empty (an unset variable?); give a serial device such as /dev/ttyUSB0, "
             "or leave --port out for the simulated robot"
         )
+    if feedforward_path is not None and reconnect_s is not None:
+        raise ConfigError(
+            "--feedforward with --reconnect: not supported yet (the slow approach that resumes "
+            "a run after a reconnect has no feedforward); use one of them"
+        )
     target = None
     if stream_url is not None:
         from guardid.live.udp import parse_stream_url
 
         target = parse_stream_url(stream_url)
     inputs = [("--trajectory", trajectory_path), ("--robot", robot_file(robot))]
+    if feedforward_path is not None:
+        inputs.append(("--feedforward", feedforward_path))
     check_output(output, inputs, force=force)
     description = load_robot(robot)
     trajectory = _load_trajectory(trajectory_path)
@@ -206,6 +227,7 @@ def _capture(
         duration = (periods or 1) * trajectory.period
     _check_room(output, duration, description)
     check_trajectory(trajectory, description, duration, trajectory_path)
+    feedforward = _feedforward(feedforward_path, description, trajectory)
     tracker = _tracker(online, description, trajectory, online_effort)
     live = None
     if until_std is not None:
@@ -239,6 +261,8 @@ def _capture(
         try:
             info = connect(session, port_url, reset=reset)
             check_info(info, description, port_url)
+            if feedforward is not None:
+                check_feedforward_capability(info, port_url)
         except BaseException:
             stop.disarm()
             session.finish()  # best effort: leave the robot idle whatever went wrong
@@ -253,6 +277,7 @@ def _capture(
             "sample_period_s": description.sample_period,
             "trajectory": trajectory.to_dict(),
             "duration_s": duration,
+            "feedforward": None if feedforward is None else feedforward.label,
             "start_time": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         }
         result = run_capture(
@@ -270,6 +295,7 @@ def _capture(
             on_record=None if stream is None else stream.send_row,
             reconnect=None if reconnect_s is None else reconnector.reconnect,
             notify=_notify,
+            feedforward=feedforward,
         )
     finally:
         for p in reconnector.ports:
@@ -322,6 +348,17 @@ class _Reconnector:
             raise LinkError(f"{exc} (the port came back, the robot did not answer)") from None
         check_info(info, self.description, self.url)
         return self.session
+
+
+def _feedforward(path, description, trajectory):
+    """The --feedforward model, checked against every motor's supply (None without it)."""
+    if path is None:
+        return None
+    from guardid.feedforward import check_supply, load_feedforward
+
+    model = load_feedforward(path, description)
+    check_supply(model, trajectory, f"--feedforward {path}")
+    return model
 
 
 ROW_BYTES_BASE, ROW_BYTES_PER_JOINT = 30, 60

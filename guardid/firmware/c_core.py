@@ -124,7 +124,7 @@ def load_library():
         "gf_sil_overflows": (ctypes.c_uint32, [vp]),
         "gf_sil_state": (None, [vp, i64p]),
         "gf_sil_set_tick": (None, [vp, ctypes.c_uint32]),
-        "gf_sil_pid_step": (ctypes.c_int32, [i64p, ctypes.c_int32, ctypes.c_int32]),
+        "gf_sil_pid_step": (ctypes.c_int32, [i64p] + [ctypes.c_int32] * 3),
         "gf_sil_gains": (
             None,
             [ctypes.c_int32] * 3 + [ctypes.c_uint32, ctypes.c_uint32, i64p],
@@ -272,8 +272,8 @@ class CPid:
     def set_gains(self, gains_q16) -> None:
         self._s[0], self._s[1], self._s[2] = gains_q16
 
-    def step(self, setpoint: int, position: int) -> int:
-        return self.lib.gf_sil_pid_step(self._s, setpoint, position)
+    def step(self, setpoint: int, position: int, feedforward_mv: int = 0) -> int:
+        return self.lib.gf_sil_pid_step(self._s, setpoint, position, feedforward_mv)
 
     @property
     def integral(self) -> int:

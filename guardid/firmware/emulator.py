@@ -8,8 +8,9 @@ It implements the :class:`guardid.fakeport.device.Device` interface. Per tick ``
 2. check the watchdog (moving mode and no host frame for ``watchdog_ms``: 0 V, idle,
    watchdog bit latched, FAULT sent);
 3. take the setpoint stamped for tick ``k`` from the buffer (none: hold the last one and
-   flag ``setpoint_underrun``);
-4. compute the motor voltage (idle: 0; position: fixed-point PID; voltage: the host's
+   flag ``setpoint_underrun``), with its feedforward voltage (SETPOINT_FF; 0 for SETPOINT);
+4. compute the motor voltage (idle: 0; position: fixed-point PID plus the feedforward,
+   before the output limit; voltage: the host's
    value), stop a joint from driving further past its position limit, quantise to the PWM
    duty, and hold it over ``k .. k+1``;
 5. send TELEMETRY for tick ``k`` while streaming.
@@ -51,8 +52,10 @@ ESTOP_BIT = 1 << STATUS["estop"]
 SATURATED_BITS = [1 << v for k, v in sorted(STATUS.items()) if k.startswith("saturated_j")]
 LIMIT_BITS = [1 << v for k, v in sorted(STATUS.items()) if k.startswith("limit_j")]
 HOLD_BIT = 1 << SETPOINT_FLAGS["hold"]
-if [f.name for f in M["SETPOINT"].SPEC.fields] != ["tick", "flags", "position"]:
-    raise ImportError("the emulator's SETPOINT handler no longer matches the protocol")
+if [f.name for f in M["SETPOINT"].SPEC.fields] != ["tick", "flags", "position"] or [
+    f.name for f in M["SETPOINT_FF"].SPEC.fields
+] != ["tick", "flags", "position", "feedforward"]:
+    raise ImportError("the emulator's SETPOINT handlers no longer match the protocol")
 
 SETPOINT_DEPTH = 8  #: setpoints buffered ahead of their tick
 DEFAULT_WATCHDOG_MS = 250
@@ -118,6 +121,17 @@ class FirmwareEmulator:
     ``current`` [A] (period means as the ADC reports them).
     """
 
+    #: INFO protocol_version and capability bits; a subclass may play older firmware
+    protocol_version = PROTOCOL_VERSION
+    capabilities = (
+        "current_sense",
+        "voltage_sense",
+        "setpoint_buffer",
+        "watchdog",
+        "voltage_mode",
+        "feedforward",
+    )
+
     def __init__(self, description, plant) -> None:
         joints = description.joints
         bind_robot(self, description, plant)
@@ -153,6 +167,8 @@ class FirmwareEmulator:
         self.last_host_tick = 0
         self.buffer: deque = deque()
         self.setpoint = [0] * self.n
+        self._no_feedforward = [0] * self.n  # shared, never changed
+        self.feedforward_mv = self._no_feedforward  # added to the PID output (SETPOINT_FF)
         self.setpoint_hold = True  # no underrun before the first streamed setpoint
         self.voltage_cmd_mv = [0] * self.n
         self.applied_mv = [0] * self.n  # after limits and PWM, held over the next period
@@ -192,19 +208,10 @@ class FirmwareEmulator:
         self._send(self._last_reply)
 
     def _on_hello(self, frame) -> None:
-        caps = sum(
-            1 << CAP[c]
-            for c in (
-                "current_sense",
-                "voltage_sense",
-                "setpoint_buffer",
-                "watchdog",
-                "voltage_mode",
-            )
-        )
+        caps = sum(1 << CAP[c] for c in self.capabilities)
         self._send(
             M["INFO"](
-                PROTOCOL_VERSION,
+                self.protocol_version,
                 self.n,
                 caps,
                 FIRMWARE_ID,
@@ -234,6 +241,7 @@ class FirmwareEmulator:
         self.mode = mode
         self.buffer.clear()
         self.setpoint = list(self.counts)
+        self.feedforward_mv = self._no_feedforward
         self.setpoint_hold = True  # no underrun before the first streamed setpoint
         self.voltage_cmd_mv = [0] * self.n
         for pid in self.pids:
@@ -251,6 +259,15 @@ class FirmwareEmulator:
 
     def _on_setpoint(self, frame) -> None:
         tick, flags, position = frame.msg
+        self._queue_setpoint(frame, tick, flags, position)
+
+    def _on_setpoint_ff(self, frame) -> None:
+        tick, flags, position, feedforward = frame.msg
+        self._queue_setpoint(frame, tick, flags, position, list(feedforward))
+
+    def _queue_setpoint(self, frame, tick, flags, position, feedforward_mv=None) -> None:
+        """Queue (tick, position, hold) for SETPOINT, (tick, position, hold, feedforward [mV])
+        for SETPOINT_FF (a 3-tuple entry means no feedforward), or NAK."""
         buffer = self.buffer
         if len(position) != self.n:
             return self._nak(frame, "bad_joint")
@@ -265,7 +282,11 @@ class FirmwareEmulator:
             return self._nak(frame, "bad_value")
         if len(buffer) >= SETPOINT_DEPTH:
             return self._nak(frame, "buffer_full")
-        buffer.append((tick, list(position), bool(flags & HOLD_BIT)))
+        if feedforward_mv is None:
+            return buffer.append((tick, list(position), bool(flags & HOLD_BIT)))
+        if any(abs(v) > s for v, s in zip(feedforward_mv, self.supply_mv, strict=True)):
+            return self._nak(frame, "bad_value")
+        buffer.append((tick, list(position), bool(flags & HOLD_BIT), feedforward_mv))
 
     def _on_set_voltage(self, frame) -> None:
         msg = frame.msg
@@ -313,6 +334,7 @@ class FirmwareEmulator:
         "SetMode": _on_set_mode,
         "SetPid": _on_set_pid,
         "Setpoint": _on_setpoint,
+        "SetpointFf": _on_setpoint_ff,
         "SetVoltage": _on_set_voltage,
         "StartStream": _on_start_stream,
         "StopStream": _on_stop_stream,
@@ -340,14 +362,16 @@ class FirmwareEmulator:
             buffer = self.buffer
             # tick_diff(buffer[0][0], tick) <= 0, inlined (serial u32 arithmetic)
             while buffer and ((buffer[0][0] - tick + 0x80000000) & TICK_MASK) <= 0x80000000:
-                _, self.setpoint, self.setpoint_hold = buffer.popleft()
+                entry = buffer.popleft()
+                self.setpoint, self.setpoint_hold = entry[1], entry[2]
+                self.feedforward_mv = entry[3] if len(entry) > 3 else self._no_feedforward
                 due = True
             if not due and not self.setpoint_hold:
                 status |= UNDERRUN_BIT
             out = []
-            setpoint = self.setpoint
+            setpoint, feedforward = self.setpoint, self.feedforward_mv
             for j, pid in enumerate(self.pids):
-                out.append(pid.step(setpoint[j], counts[j]))
+                out.append(pid.step(setpoint[j], counts[j], feedforward[j]))
                 if pid.saturated:
                     status |= SATURATED_BITS[j]
         elif mode == VOLTAGE:

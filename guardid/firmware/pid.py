@@ -4,10 +4,11 @@ Positions are encoder counts (int), the output is millivolts (int). Gains arrive
 micro-units (SET_PID: kp [uV/rad], ki [uV/(rad s)], kd [uV s/rad]) and are turned once
 into Q16 factors per count, so the per-tick step is integer multiply, add and shift:
 
-    u_mV = (KP*e + I + KD*(e - e_prev)) >> 16,   I += KI*e   (I in Q16 mV)
+    u_mV = (KP*e + I + KD*(e - e_prev) + (FF << 16)) >> 16,   I += KI*e   (I in Q16 mV)
 
-with ``e = setpoint - position`` in counts. The integral is clamped to the output range
-and frozen while the output saturates in the direction of the error (anti-windup).
+with ``e = setpoint - position`` in counts and ``FF`` the host's feedforward [mV]
+(SETPOINT_FF; 0 otherwise), added before the output limit. The integral is clamped to the
+output range and frozen while the output saturates in the direction of the error (anti-windup).
 """
 
 from __future__ import annotations
@@ -60,13 +61,16 @@ class FixedPid:
         self.prev_error = 0
         self.saturated = False
 
-    def step(self, setpoint: int, position: int) -> int:
-        """One tick: the output voltage [mV], clamped to +-limit_mv."""
+    def step(self, setpoint: int, position: int, feedforward_mv: int = 0) -> int:
+        """One tick: the output voltage [mV] (PID plus ``feedforward_mv``), clamped to
+        +-limit_mv."""
         error = setpoint - position
         lim_q = self.limit_mv << Q
         integral = self.integral + self.ki * error
         integral = max(-lim_q, min(lim_q, integral))
-        raw = self.kp * error + integral + self.kd * (error - self.prev_error)
+        raw = (
+            self.kp * error + integral + self.kd * (error - self.prev_error) + (feedforward_mv << Q)
+        )
         out = raw >> Q if raw >= 0 else -((-raw) >> Q)
         self.saturated = abs(out) > self.limit_mv
         if self.saturated:

@@ -21,7 +21,15 @@ import numpy as np
 import serial
 
 from guardid.errors import LinkError
-from guardid.protocol import ENUMS, MESSAGES, PROTOCOL_VERSION, Encoder, FrameParser, to_si
+from guardid.protocol import (
+    ENUMS,
+    MESSAGES,
+    MIN_PROTOCOL_VERSION,
+    PROTOCOL_VERSION,
+    Encoder,
+    FrameParser,
+    to_si,
+)
 
 M = MESSAGES
 _ERROR_NAMES = {v: k for k, v in ENUMS["error"].items()}
@@ -117,7 +125,7 @@ class Session:
         # sim:// ports: one call per poll (looked up on the class, so that a proxy which
         # wraps read() only is read through read())
         self._read_some = port.read_some if hasattr(type(port), "read_some") else None
-        self._setpoint_packers: dict = {}  # joint count -> SETPOINT frame packer
+        self._setpoint_packers: dict = {}  # (values, feedforward) -> SETPOINT(_FF) packer
         self._lockstep = bool(getattr(getattr(port, "options", None), "lockstep", False))
         self.faults: list = []
         self.info = None
@@ -219,10 +227,11 @@ class Session:
         """HELLO -> INFO; check the protocol version. Returns INFO in SI (dict)."""
         frame = self.command(M["HELLO"](), lambda f, seq: type(f.msg) is M["INFO"])
         info = frame.msg
-        if info.protocol_version != PROTOCOL_VERSION:
+        if not MIN_PROTOCOL_VERSION <= info.protocol_version <= PROTOCOL_VERSION:
             raise LinkError(
                 f"port {self.name}: robot speaks protocol version {info.protocol_version}, "
-                f"guardid speaks {PROTOCOL_VERSION}: update the firmware or guardid"
+                f"guardid speaks {MIN_PROTOCOL_VERSION}..{PROTOCOL_VERSION}: update the "
+                "firmware or guardid"
             )
         self.info = to_si(info)
         return self.info
@@ -266,15 +275,25 @@ class Session:
         """Clear a latched e-stop or tripped watchdog."""
         self.request(M["CLEAR_ESTOP"]())
 
-    def send_setpoint(self, tick: int, counts) -> None:
-        """Queue joint setpoints [counts] for ``tick`` (not acknowledged)."""
-        counts = [int(c) for c in counts]
-        pack = self._setpoint_packers.get(len(counts))
-        if pack is None:  # the bytes of encode(SETPOINT(tick, 0, counts)), built once per n
-            pack = self._setpoint_packers[len(counts)] = self.encoder.packer(
-                M["SETPOINT"], len(counts)
-            )
-        self._write(pack(tick & 0xFFFFFFFF, 0, *counts))
+    def send_setpoint(self, tick: int, counts, feedforward_mv=None) -> None:
+        """Queue joint setpoints [counts] for ``tick`` (not acknowledged); with
+        ``feedforward_mv`` (per joint [mV], firmware with the feedforward capability) as
+        SETPOINT_FF."""
+        values = [int(c) for c in counts]
+        if feedforward_mv is not None:
+            values += [int(v) for v in feedforward_mv]
+        self._write(self._setpoint_packer(len(values), feedforward_mv is not None)(
+            tick & 0xFFFFFFFF, 0, *values))  # fmt: skip
+
+    def _setpoint_packer(self, n_values: int, feedforward: bool):
+        """The bytes of encode(SETPOINT(tick, 0, counts)) (or SETPOINT_FF with the
+        feedforward after the counts) from (tick, flags, *values), built once per kind."""
+        key = (n_values, feedforward)
+        pack = self._setpoint_packers.get(key)
+        if pack is None:
+            msg, n = (M["SETPOINT_FF"], n_values // 2) if feedforward else (M["SETPOINT"], n_values)
+            pack = self._setpoint_packers[key] = self.encoder.packer(msg, n)
+        return pack
 
     def send_voltage(self, volts) -> None:
         """Open-loop motor voltages [V] (voltage mode)."""
@@ -293,7 +312,11 @@ class Session:
         return self.telemetry.popleft()
 
     def track(
-        self, setpoints_counts: np.ndarray | LazyRows, depth: int = 8, lead_ticks: int = 3
+        self,
+        setpoints_counts: np.ndarray | LazyRows,
+        depth: int = 8,
+        lead_ticks: int = 3,
+        feedforward: bool = False,
     ) -> Iterator:
         """Run a closed-loop trajectory: one row of joint setpoints [counts] per tick.
 
@@ -306,7 +329,9 @@ class Session:
         ``depth - 1`` (~160 bytes, 14 ms at 115200 baud): behind them it reached the AVR
         binary in the loop (firmware=avr) after the first row's tick, which then had no
         telemetry. ``setpoints_counts``: an (N, n) array, or :class:`LazyRows` for a long
-        run (made as the run reaches them, never all at once).
+        run (made as the run reaches them, never all at once). ``feedforward``: each row is
+        the n setpoints [counts] followed by the n feedforward voltages [mV], streamed as
+        SETPOINT_FF (only to firmware whose INFO has the feedforward capability).
         """
         rows = setpoints_counts
         if not isinstance(rows, LazyRows):
@@ -316,14 +341,13 @@ class Session:
         first = self.ping() + lead_ticks
         last = first + len(rows) - 1
         sent = first
-        self.send_setpoint(sent, rows[0])
+        pack = self._setpoint_packer(len(rows[0]), feedforward)
+        write, next_telemetry = self._write, self.next_telemetry
+        write(pack(sent & 0xFFFFFFFF, 0, *rows[0]))
         self.start_stream()
         while sent < min(first + depth - 1, last):
             sent += 1
-            self.send_setpoint(sent, rows[sent - first])
-        # the loop's send_setpoint(tick, row), with the row's ints and the packer at hand
-        pack = self._setpoint_packers[len(rows[0])]  # made by the first send_setpoint
-        write, next_telemetry = self._write, self.next_telemetry
+            write(pack(sent & 0xFFFFFFFF, 0, *rows[sent - first]))
         while True:
             t = next_telemetry()
             tick = t.tick

@@ -3,7 +3,8 @@
 Public API (all names importable from ``guardid.protocol``):
 
 - ``SPEC``: :class:`ProtocolSpec` loaded from the packaged ``messages.yaml`` (identical copy
-  of ``firmware_proto/messages.yaml``); ``PROTOCOL_VERSION``, ``MAX_JOINTS``.
+  of ``firmware_proto/messages.yaml``); ``PROTOCOL_VERSION`` (and the oldest a host talks
+  to, ``MIN_PROTOCOL_VERSION``), ``MAX_JOINTS``.
 - ``MESSAGES`` / ``BY_ID``: message classes (NamedTuples, field names from the YAML, raw
   integer values, per-joint fields as tuples of n_joints entries) by name / by id, also
   exported as attributes: ``Hello``, ``Ping``, ``SetMode``, ``SetPid``, ``Setpoint``,
@@ -26,6 +27,7 @@ from .codec import (
     MAX_JOINTS,
     MAX_RAW,
     MESSAGES,
+    MIN_PROTOCOL_VERSION,
     PROTOCOL_VERSION,
     SPEC,
     Encoder,
@@ -49,6 +51,7 @@ __all__ = [
     "MAX_JOINTS",
     "MAX_RAW",
     "MESSAGES",
+    "MIN_PROTOCOL_VERSION",
     "PROTOCOL_VERSION",
     "SPEC",
     "Encoder",

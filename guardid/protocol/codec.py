@@ -20,7 +20,9 @@ from cobs import cobs
 from .spec import CRC_LEN, HEADER_LEN, MessageSpec, load_spec
 
 SPEC = load_spec()
-PROTOCOL_VERSION = SPEC.version
+PROTOCOL_VERSION = SPEC.version  #: the message set (INFO protocol_version)
+MIN_PROTOCOL_VERSION = SPEC.min_version  #: oldest firmware protocol version a host talks to
+FRAME_VERSION = SPEC.frame_version  #: the frame header's version byte
 MAX_JOINTS = SPEC.max_joints
 MIN_RAW = HEADER_LEN + CRC_LEN  #: shortest decoded frame, bytes
 MAX_RAW = MIN_RAW + SPEC.max_payload  #: longest decoded frame, bytes
@@ -110,7 +112,7 @@ for _m in SPEC.messages:
     _N_FIXED[_m.msg_id] = _flags.count(False)
 
 
-def encode_raw(msg: tuple, seq: int, version: int = PROTOCOL_VERSION) -> bytes:
+def encode_raw(msg: tuple, seq: int, version: int = FRAME_VERSION) -> bytes:
     """Header + payload + CRC of ``msg`` (before COBS), ``seq`` taken modulo 2**16."""
     spec = msg.SPEC
     k = _N_FIXED[spec.msg_id]
@@ -144,7 +146,7 @@ def decode_raw(raw: bytes) -> Frame | str:
         return "short"
     if zlib.crc32(raw) != CRC_RESIDUE:
         return "crc"
-    if raw[0] != PROTOCOL_VERSION:
+    if raw[0] != FRAME_VERSION:
         return "version"
     dec = DECODERS.get((raw[1], len(raw)))
     if dec is None:
@@ -184,7 +186,7 @@ class Encoder:
         n = n_joints if spec.per_joint else 0
         if spec.per_joint and not 1 <= n <= MAX_JOINTS:
             raise ValueError(f"{spec.name}: n_joints must be in 1..{MAX_JOINTS}, got {n_joints}")
-        pack, mid, version = _BODY[(spec.msg_id, n)].pack, spec.msg_id, PROTOCOL_VERSION
+        pack, mid, version = _BODY[(spec.msg_id, n)].pack, spec.msg_id, FRAME_VERSION
         crc32, cobs_encode = zlib.crc32, cobs.encode
 
         def frame(*values) -> bytes:

@@ -17,7 +17,7 @@ from dataclasses import dataclass, fields
 
 from cobs import cobs
 
-from .codec import BY_ID, CRC_RESIDUE, DECODERS, MAX_ENCODED, MIN_RAW, PROTOCOL_VERSION, Frame
+from .codec import BY_ID, CRC_RESIDUE, DECODERS, FRAME_VERSION, MAX_ENCODED, MIN_RAW, Frame
 
 _cobs_decode, _CobsError, _crc32 = cobs.decode, cobs.DecodeError, zlib.crc32
 
@@ -129,7 +129,7 @@ class FrameParser:
             if _crc32(raw) != CRC_RESIDUE:
                 st.crc_errors += 1
                 continue
-            if raw[0] != PROTOCOL_VERSION:
+            if raw[0] != FRAME_VERSION:
                 st.bad_version += 1
                 continue
             mid = raw[1]

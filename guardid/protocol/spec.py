@@ -111,6 +111,12 @@ class ProtocolSpec:
     tick_period_us: int
     enums: dict
     messages: tuple[MessageSpec, ...]
+    frame_version: int = 1  #: the header's version byte (frame layout)
+    min_version: int = 1  #: oldest protocol version (INFO) a host can talk to
+
+    tick_period_us: int
+    enums: dict
+    messages: tuple[MessageSpec, ...]
 
     def by_name(self, name: str) -> MessageSpec:
         return next(m for m in self.messages if m.name == name)
@@ -156,6 +162,8 @@ def parse_spec(doc: dict) -> ProtocolSpec:
         tick_period_us=int(doc["tick_period_us"]),
         enums=dict(doc.get("enums") or {}),
         messages=tuple(msgs),
+        frame_version=int(doc.get("frame_version", doc["protocol_version"])),
+        min_version=int(doc.get("min_protocol_version", doc["protocol_version"])),
     )
 
 

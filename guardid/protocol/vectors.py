@@ -97,10 +97,10 @@ def _bad_frames():
             raw = raw + zlib.crc32(raw).to_bytes(4, "little")
         return (cobs.encode(raw) + b"\x00").hex()
 
-    ping = bytes([SPEC.version, 0x02, 7, 0]) + (1234).to_bytes(4, "little")
+    ping = bytes([SPEC.frame_version, 0x02, 7, 0]) + (1234).to_bytes(4, "little")
     yield "cobs", "05414243" + "00"
-    yield "short", frame(bytes([SPEC.version, 0x02, 0]), fix_crc=False)
+    yield "short", frame(bytes([SPEC.frame_version, 0x02, 0]), fix_crc=False)
     yield "crc", frame(ping + b"\x00\x00\x00\x00", fix_crc=False)
-    yield "version", frame(bytes([SPEC.version + 1]) + ping[1:])
-    yield "unknown_id", frame(bytes([SPEC.version, 0x7F, 0, 0]))
+    yield "version", frame(bytes([SPEC.frame_version + 1]) + ping[1:])
+    yield "unknown_id", frame(bytes([SPEC.frame_version, 0x7F, 0, 0]))
     yield "length", frame(ping + b"\x01")
