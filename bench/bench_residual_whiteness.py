@@ -25,7 +25,7 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-from bench_std_check import SETS, truth_values
+from bench_std_check import EXTRA_SETS, SETS, truth_values
 
 from guardid.dynamics import build_model
 from guardid.estimators import WeightedLeastSquares
@@ -91,7 +91,7 @@ def sandwich_std(A, r, w, k, window: int, hc2: bool = False):
 
 
 def check_set(name: str, keep: Path, seeds) -> None:
-    s = SETS[name]
+    s = {**SETS, **EXTRA_SETS}[name]
     truth = truth_values(s.robot)
     data = []
     for seed in seeds:
