@@ -157,8 +157,10 @@ def run_job(job: Job):
         return job.seed, None, None
     if not (job.reuse_params and params.exists()):
         params.unlink(missing_ok=True)  # identify does not replace a file
-        err = _guardid("identify", str(log), "--method", job.methods, *job.identify_args,
-                       "-o", str(params))  # fmt: skip
+        # the robot named, not found through the log's robot_source: a kept log outlives the
+        # worktree that captured it
+        err = _guardid("identify", str(log), "--robot", robot, "--method", job.methods,
+                       *job.identify_args, "-o", str(params))  # fmt: skip
         if err:
             return job.seed, None, f"identify: {err}"
     data = yaml.safe_load(params.read_text())
