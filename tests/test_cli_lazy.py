@@ -78,3 +78,46 @@ def test_a_missing_log_is_one_line_without_heavy_imports(tmp_path):
     assert done.returncode == 2
     lines = done.stderr.splitlines()
     assert len(lines) == 1 and lines[0].startswith("guardid: error:") and "nope.csv" in lines[0]
+
+
+def test_capture_imports_no_optimiser(gap_guard_captures, tmp_path):
+    """``capture`` runs without scipy.optimize (0.25-0.5 s of imports it never uses; issue
+    30): the trajectory is read and run, the optimiser is the ``excite`` command's."""
+    traj = gap_guard_captures[1].parent / "traj.yaml"  # the session's (read only)
+    probe = (
+        "import sys\n"
+        "from guardid.cli import main\n"
+        f"args = ['capture', '--trajectory', {str(traj)!r}, '--duration', '0.3', '--quiet',\n"
+        f"        '-o', {str(tmp_path / 'log.csv')!r}]\n"
+        "try:\n    main(args, prog_name='guardid')\nexcept SystemExit as e:\n"
+        "    assert not e.code, e.code\n"
+        "print('LOADED', 'scipy.optimize' in sys.modules, 'guardid.excitation' in sys.modules)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().splitlines()[-1] == "LOADED False True"
+    assert (tmp_path / "log.csv").stat().st_size > 0
+
+
+@pytest.mark.parametrize(("given", "threads"), [(None, 1), ("2", 2)])
+def test_a_command_runs_one_blas_thread_unless_told(given, threads):
+    """The command line sets one BLAS thread before numpy loads (issue 30: the forked
+    tracker and the fit of ``identify`` then do not fight over the cores); a value in the
+    environment wins."""
+    import os
+
+    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS",
+                                                             "OMP_NUM_THREADS")}  # fmt: skip
+    if given is not None:
+        env["OPENBLAS_NUM_THREADS"] = given
+    probe = (  # a command (here --help) first, numpy after it, as a command loads it
+        "from guardid.cli import main\n"
+        "try:\n    main(['--help'], prog_name='guardid')\nexcept SystemExit:\n    pass\n"
+        "import numpy, threadpoolctl\n"
+        "info = [i for i in threadpoolctl.threadpool_info() if i['user_api'] == 'blas']\n"
+        "print('THREADS', info[0]['num_threads'])\n"
+    )
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                          env=env)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().splitlines()[-1] == f"THREADS {threads}"

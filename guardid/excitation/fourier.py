@@ -16,7 +16,6 @@ with 1/f, so the motion is at rest at the start pose again after every whole per
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import null_space
 
 from guardid.excitation.trajectory import Fields, Trajectory, floats, time_array
 
@@ -135,6 +134,8 @@ def rest_basis(harmonics: int) -> np.ndarray:
     rows = np.zeros((2, 2 * h))
     rows[0, :h] = 1.0
     rows[1, h:] = np.arange(1, h + 1)
+    from scipy.linalg import null_space  # here: reading a trajectory does not need scipy
+
     return null_space(rows)
 
 

@@ -21,7 +21,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
 from guardid.excitation.fourier import FourierTrajectory, design_matrices, rest_basis
 from guardid.excitation.limits import SLOW_FRACTION, JointLimits, fit_to_limits
@@ -202,6 +201,8 @@ def optimise_fourier(
             progress(f"start {k + 1}/{starts} iteration 0: cond {start_conds[k]:.1f}")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
+            from scipy.optimize import minimize  # here: capture loads excitation without it
+
             res = minimize(
                 prob.cost,
                 z0,
