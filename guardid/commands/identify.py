@@ -407,13 +407,31 @@ def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, force, 
     error in its unit and the relative error (not for a passive joint).
     """
     from guardid.commands.outputs import check_output
-    from guardid.identify import validation as v
 
     inputs = [("LOG", x) for x in log] + [("--params", x) for x in params_paths]
     check_output(report_path, inputs, option="--report", force=force)
+    keep = {}
+    click.echo(scored(log, params_paths, robot, cutoff, parallel_hz, foreign, keep))
+    description, sets, current_units = keep["description"], keep["sets"], keep["current_units"]
+    if report_path:
+        from guardid.commands.outputs import write_text
+        from guardid.report.cli import validate_page
+
+        page = validate_page(description, log, sets, keep, current_units)
+        write_text(report_path, page, "--report")
+        click.echo(f"report written to {report_path}")
+
+
+def scored(logs, params_paths, robot, cutoff, parallel_hz, foreign, keep: dict) -> str:
+    """What ``guardid validate`` prints: every set of ``params_paths`` scored on ``logs``
+    under one conditioning (the first params file's, ``cutoff`` / ``parallel_hz`` [Hz]
+    override it). ``keep`` receives ``description``, ``sets``, ``current_units`` and what
+    :func:`guardid.identify.validation.validate_runs` keeps (``scores``, ...)."""
+    from guardid.identify import validation as v
+
     first = v.first_params(params_paths)
     spec = robot or (v.stored_robot(*first) if first else None)
-    runs, description = _load_all(log, spec, foreign)
+    runs, description = _load_all(logs, spec, foreign)
     if first:
         from guardid.identify.checks import check_params_robot
 
@@ -427,12 +445,5 @@ def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, force, 
     )
     sets = [s for path in params_paths for s in v.load_sets(path, description)]
     current_units = bool(first) and first[1].get("torque_unit") not in ("N m", None)
-    keep = {} if report_path else None
-    click.echo(v.validate_runs(runs, log, description, sets, options, current_units, keep=keep))
-    if report_path:
-        from guardid.commands.outputs import write_text
-        from guardid.report.cli import validate_page
-
-        page = validate_page(description, log, sets, keep, current_units)
-        write_text(report_path, page, "--report")
-        click.echo(f"report written to {report_path}")
+    keep.update(description=description, sets=sets, current_units=current_units)
+    return v.validate_runs(runs, logs, description, sets, options, current_units, keep=keep)
