@@ -411,7 +411,8 @@ def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, force, 
     inputs = [("LOG", x) for x in log] + [("--params", x) for x in params_paths]
     check_output(report_path, inputs, option="--report", force=force)
     keep = {}
-    click.echo(scored(log, params_paths, robot, cutoff, parallel_hz, foreign, keep))
+    click.echo(scored(log, params_paths, robot, cutoff, parallel_hz, foreign, keep,
+                      rows=bool(report_path)))  # fmt: skip
     description, sets, current_units = keep["description"], keep["sets"], keep["current_units"]
     if report_path:
         from guardid.commands.outputs import write_text
@@ -422,11 +423,12 @@ def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, force, 
         click.echo(f"report written to {report_path}")
 
 
-def scored(logs, params_paths, robot, cutoff, parallel_hz, foreign, keep: dict) -> str:
+def scored(logs, params_paths, robot, cutoff, parallel_hz, foreign, keep: dict, rows=True) -> str:
     """What ``guardid validate`` prints: every set of ``params_paths`` scored on ``logs``
     under one conditioning (the first params file's, ``cutoff`` / ``parallel_hz`` [Hz]
-    override it). ``keep`` receives ``description``, ``sets``, ``current_units`` and what
-    :func:`guardid.identify.validation.validate_runs` keeps (``scores``, ...)."""
+    override it). ``keep`` receives ``description``, ``sets``, ``current_units`` and, with
+    ``rows``, what :func:`guardid.identify.validation.validate_runs` keeps (``scores``, the
+    conditioned rows, the predictions)."""
     from guardid.identify import validation as v
 
     first = v.first_params(params_paths)
@@ -446,4 +448,5 @@ def scored(logs, params_paths, robot, cutoff, parallel_hz, foreign, keep: dict) 
     sets = [s for path in params_paths for s in v.load_sets(path, description)]
     current_units = bool(first) and first[1].get("torque_unit") not in ("N m", None)
     keep.update(description=description, sets=sets, current_units=current_units)
-    return v.validate_runs(runs, logs, description, sets, options, current_units, keep=keep)
+    kept = keep if rows else None
+    return v.validate_runs(runs, logs, description, sets, options, current_units, keep=kept)
