@@ -28,7 +28,7 @@ from guardid.identify.runs import load_run
 from guardid.physical import description_with, fit_consistent
 from guardid.robot import load_robot
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "realdata" / "dfki-double-pendulum"
+DATA = Path(__file__).resolve().parents[1] / "tests" / "data" / "dfki-double-pendulum"
 COLUMNS = "time=time,q1=pos_meas1,q2=pos_meas2,tau1=tau_meas1,tau2=tau_meas2"
 
 

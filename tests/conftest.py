@@ -2,8 +2,50 @@
 
 from __future__ import annotations
 
+import fcntl
+import os
+import pickle
+from pathlib import Path
+
 import pytest
 from badinput_tools import invoke, one_blas_thread
+
+
+def made_once(tmp_path_factory, name: str, make) -> Path:
+    """A directory ``make(directory)`` fills once per test run, shared by the xdist workers
+    (a lock file: the first worker to ask makes it, the others wait and reuse it). Only for
+    deterministic content that no test writes to."""
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # the workers' common base
+    d = root / f"once-{name}"
+    with open(root / f"once-{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (d / ".complete").exists():
+            d.mkdir(exist_ok=True)
+            make(d)
+            (d / ".complete").touch()
+    return d
+
+
+@pytest.fixture(scope="session")
+def excitation(tmp_path_factory):
+    """``excitation(*args)``: the path of ``guardid excite ARGS -o traj.yaml`` (deterministic:
+    the optimisation is seeded), made once per test run whichever module asks first. Read
+    only: copy it before editing."""
+
+    def get(*args) -> Path:
+        name = "excite" + "".join(str(a).replace("-", "_") for a in args)
+
+        def make(d):
+            with one_blas_thread():
+                res = invoke("excite", *args, "-o", d / "traj.yaml")
+            assert res.exit_code == 0, res.output
+
+        return made_once(tmp_path_factory, name, make) / "traj.yaml"
+
+    return get
+
 
 GAP_SEEDS = (1, 2, 3)
 GAP_CAPTURE_S = 60
@@ -44,12 +86,17 @@ def gap_guard_wls_params(gap_guard_captures, tmp_path_factory) -> dict:
 
 
 @pytest.fixture(scope="session")
-def seed001_table1_report():
+def seed001_table1_report(tmp_path_factory):
     """``guardid reproduce seed001-table1`` at its defaults (15 noise seeds), run once per
-    session (about 25 s of CPU): shared by test_reproduce and test_mlp_reproduce."""
+    test run (about 25 s of CPU), whichever xdist worker asks first: shared by
+    test_reproduce and test_mlp_reproduce."""
     from guardid.reproduce import seed001_table1
 
-    return seed001_table1.run(0)
+    def make(d):
+        (d / "report.pickle").write_bytes(pickle.dumps(seed001_table1.run(0)))
+
+    d = made_once(tmp_path_factory, "seed001_table1", make)
+    return pickle.loads((d / "report.pickle").read_bytes())
 
 
 REPLAY_CAPTURE_S = 8

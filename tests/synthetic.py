@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-# the lab's published values (README of shared/realdata), friction with a smooth Coulomb
-# term cf tanh(qd / 0.01 rad/s) as in guardid's dfki_double_pendulum.yaml
+# the lab's published values (tests/data/dfki-double-pendulum/README.md), friction with a
+# smooth Coulomb term cf tanh(qd / 0.01 rad/s) as in guardid's dfki_double_pendulum.yaml
 P = {
     "m1": 0.5593806151425046, "m2": 0.6043459469186889, "r1": 0.3, "r2": 0.18377686083653508,
     "I1": 0.053470810264216295, "I2": 0.02392374528789766, "Ir": 7.659297952841183e-05,

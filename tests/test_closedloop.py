@@ -29,10 +29,8 @@ COUNT_RAD = np.array([2 * math.pi / (j.drive.gear_ratio * j.encoder.counts_per_r
                       for j in GUARD.joints])  # fmt: skip
 
 
-def _capture(directory, port: str, seconds: int, optimise: bool):
-    traj = directory / "traj.yaml"
-    res = invoke("excite", *(() if optimise else ("--no-optimise",)), "-o", traj)
-    assert res.exit_code == 0, res.output
+def _capture(directory, port: str, seconds: int, traj):
+    """A lock-step capture of ``traj`` (from the session's ``excitation`` fixture)."""
     log = directory / "run.csv"
     res = invoke("capture", "--trajectory", traj, "--duration", seconds, "--quiet",
                  "--port", port, "-o", log)  # fmt: skip
@@ -41,17 +39,17 @@ def _capture(directory, port: str, seconds: int, optimise: bool):
 
 
 @pytest.fixture(scope="module")
-def quiet_log(tmp_path_factory):
+def quiet_log(tmp_path_factory, excitation):
     """10 s, noise off, off the encoder grid (phase): the simulator's reference motion."""
     return _capture(tmp_path_factory.mktemp("cl_quiet"), "sim://guard?noise=0&phase=1&seed=4",
-                    10, optimise=False)  # fmt: skip
+                    10, excitation("--no-optimise"))  # fmt: skip
 
 
 @pytest.fixture(scope="module")
-def noisy_log(tmp_path_factory):
+def noisy_log(tmp_path_factory, excitation):
     """30 s on the optimised excitation, sensor noise on."""
     return _capture(tmp_path_factory.mktemp("cl_noisy"), "sim://guard?seed=3&phase=1", 30,
-                    optimise=True)  # fmt: skip
+                    excitation())  # fmt: skip
 
 
 def test_base_dynamics_match_newton_euler_on_physical_parameters():
@@ -227,12 +225,14 @@ def test_several_runs_stack_their_simulations(quiet_log):
     np.testing.assert_allclose(two.std * math.sqrt(2), one.std, rtol=0.02)
 
 
-def test_cross_validation_runs_the_closed_loop_methods(quiet_log, tmp_path):
+def test_cross_validation_runs_the_closed_loop_methods(quiet_log, tmp_path, excitation):
     """``identify --cv --method wls,iv``: every fold gets its training runs' setpoints, ticks
     and voltages, so IV is scored beside WLS (it once stopped with "no setpoints"); on two
     noise-free runs of one excitation, IV's held-out error is WLS's (both ~0.31 %) within the
     rounding of the printed figures (0.01 percentage points each), i.e. within 5 %."""
-    second = _capture(tmp_path, "sim://guard?noise=0&phase=1&seed=5", 10, optimise=False)
+    second = _capture(
+        tmp_path, "sim://guard?noise=0&phase=1&seed=5", 10, excitation("--no-optimise")
+    )
     res = invoke("identify", quiet_log, second, "--method", "wls,iv", "--cv", "--cutoff", "4")
     assert res.exit_code == 0, res.output
     mean = next(line for line in res.output.splitlines() if line.startswith("mean"))

@@ -243,3 +243,20 @@ def test_guardid_without_urdf_does_not_import_yourdfpy():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_urdf_without_the_urdf_extra_is_one_line_naming_it(tmp_path, monkeypatch):
+    """yourdfpy is the ``urdf`` extra: without it a URDF robot is one error line that says
+    what to install (exit 2), no traceback; robots in YAML never need it."""
+    from badinput_tools import invoke
+
+    monkeypatch.setitem(sys.modules, "yourdfpy", None)  # ``import yourdfpy`` raises ImportError
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text('<robot name="arm"><link name="base"/></robot>')
+    res = invoke("simulate", "--robot", urdf, "--duration", "1", "-o", tmp_path / "t.csv")
+    assert res.exit_code == 2, res.output
+    assert res.stderr.strip() == (
+        "guardid: error: arm.urdf: reading a URDF needs yourdfpy: pip install 'guardid[urdf]'"
+    )
+    assert res.exception is None or isinstance(res.exception, SystemExit)
+    assert not (tmp_path / "t.csv").exists()

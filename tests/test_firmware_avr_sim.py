@@ -305,16 +305,14 @@ def test_same_seed_same_bytes_and_the_atmega2560_runs():
 
 
 @NEEDS_AVR
-def test_capture_through_the_avr_binary_tracks_like_the_emulator(tmp_path):
+def test_capture_through_the_avr_binary_tracks_like_the_emulator(tmp_path, excitation):
     """5 s of the tracking excitation: every row, no loss, rms within 10 % of firmware=py."""
     from click.testing import CliRunner
 
     from guardid.cli import main as cli
 
     runner = CliRunner()
-    traj = tmp_path / "track.yaml"
-    res = runner.invoke(cli, ["excite", "--base-freq", "0.2", "--harmonics", "3", "-o", str(traj)])
-    assert res.exit_code == 0, res.output
+    traj = excitation("--base-freq", "0.2", "--harmonics", "3")  # the tracking excitation
     rms = {}
     for fw in ("py", "avr"):
         log = tmp_path / f"{fw}.csv"

@@ -4,7 +4,7 @@
   parameters of the native path (same data, same conditioning);
 - synthesised torque (planar2; a prismatic single axis with viscous + Coulomb friction) on
   jittered time stamps recovers the known parameters;
-- the real DFKI runs (../shared/realdata, skipped if absent) go through the CLI;
+- the real DFKI runs (tests/data/dfki-double-pendulum) go through the CLI;
 - mapping and data errors are one line with exit code 2.
 """
 
@@ -21,12 +21,13 @@ import scipy.io
 import yaml
 from click.testing import CliRunner
 from linktools import Sines
+from realdata import DFKI as REALDATA_DFKI
 
 from guardid.cli import main
 from guardid.dynamics import build_model
 from guardid.robot import load_robot
 
-DFKI = Path(__file__).resolve().parents[2] / "shared" / "realdata" / "dfki-double-pendulum"
+DFKI = REALDATA_DFKI
 DFKI_COLUMNS = "time=time,q1=pos_meas1,q2=pos_meas2,tau1=tau_meas1,tau2=tau_meas2"
 # README: I1 + m2 l1^2, m1 r1 + m2 l1, m2 r2, I2 = our ZZ1R - Ia1, MX1R, MX2R, ZZ2R; the YAML's
 # rotors make ZZ1R = I1 + m2 l1^2 + Ia1, Ia1 = 36 Ir = 0.0028 (published), hence 0.1106
@@ -209,10 +210,7 @@ def test_prismatic_axis_recovers_mass_and_friction(tmp_path):
 
 
 def _dfki(name):
-    path = DFKI / name
-    if not path.is_file():
-        pytest.skip(f"real data not found at {DFKI} (shared/realdata beside the repo)")
-    return path
+    return DFKI / name
 
 
 @pytest.fixture(scope="module")

@@ -219,6 +219,20 @@ def test_readme_recipe_reads_a_cut_log(sim_log, tmp_path):
     assert np.array_equal(arr["q_tilt_rad"], want[:, 5])
 
 
+def test_readme_pandas_recipe_reads_a_cut_log(sim_log, tmp_path):
+    """The README's pandas recipe (the pandas extra; the test extra installs pandas)."""
+    pytest.importorskip("pandas")
+    recipe = re.search(r"`(pandas\.read_csv\(\"run\.csv\"[^`]*)`", README.read_text()).group(1)
+    head, data, _ = parts(sim_log.read_text())
+    path = write(tmp_path, "run.csv", "".join(head + data) + data[0][:25])
+    import pandas
+
+    df = eval(recipe.replace('"run.csv"', repr(str(path))), {"pandas": pandas})  # noqa: S307
+    want = reference("".join(head + data))[1]
+    assert len(df) == len(data) and np.array_equal(df["tick"].to_numpy(), want[:, 0])
+    assert np.array_equal(df["q_tilt_rad"].to_numpy(), want[:, 5])
+
+
 def test_identify_warns_once_about_a_cut_row(sim_log, tmp_path):
     head, data, _ = parts(sim_log.read_text())
     path = write(tmp_path, "cut.csv", "".join(head + data) + data[0][:30])

@@ -58,12 +58,10 @@ def live_capture(url, traj_path, seconds, log):
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory):
+def runs(tmp_path_factory, excitation):
     tmp = tmp_path_factory.mktemp("online")
     runner = CliRunner()
-    traj = tmp / "traj.yaml"
-    res = runner.invoke(cli, ["excite", *TRACKING_EXCITATION, "-o", str(traj)])
-    assert res.exit_code == 0, res.output
+    traj = excitation(*TRACKING_EXCITATION)
     pay = tmp / "pay.csv"
     res = runner.invoke(
         cli,

@@ -8,11 +8,11 @@ lstsq, not guardid's estimators.
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from realdata import DFKI as REALDATA_DFKI
 
 from guardid.dynamics import build_model
 from guardid.identify.pipeline import identified_names
@@ -127,20 +127,18 @@ def test_description_with_round_trips_the_yaml_parameters():
         assert np.allclose(again.params, model.params, rtol=1e-12, atol=1e-15)
 
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "realdata" / "dfki-double-pendulum"
+DATA = REALDATA_DFKI
 COLUMNS = "time=time,q1=pos_meas1,q2=pos_meas2,tau1=tau_meas1,tau2=tau_meas2"
 
 
 def test_cli_identify_consistent_then_export(tmp_path):
-    """Real data (DFKI run 00; skipped without ../shared/realdata): identify --consistent
+    """Real data (DFKI run 00, tests/data/dfki-double-pendulum): identify --consistent
     prints and writes the standard set, export turns it into a URDF."""
     import yaml
 
     from guardid.cli import main
 
     log = DATA / "trajectory_00.csv"
-    if not log.is_file():
-        pytest.skip(f"real data not found at {DATA}")
     params = tmp_path / "p.yaml"
     args = ["identify", str(log), "--robot", "dfki_double_pendulum", "--columns", COLUMNS]
     args += ["--cutoff", "5", "--parallel-filter", "3", "--method", "ls", "--consistent"]

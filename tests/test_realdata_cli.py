@@ -1,5 +1,5 @@
 """Real data through the product path: ``guardid identify`` / ``guardid validate`` on the
-three DFKI double-pendulum runs (../shared/realdata; skipped if absent).
+three DFKI double-pendulum runs (tests/data/dfki-double-pendulum).
 
 Acceptance (identification issue): LS on the three runs stacked lands within 10 % of the
 published base parameters I1 + m2 l1^2, m1 r1 + m2 l1, m2 r2, I2. The robot YAML models
@@ -14,13 +14,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pytest
 import yaml
 from click.testing import CliRunner
+from realdata import DFKI as REALDATA_DFKI
 
 from guardid.cli import main
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "realdata" / "dfki-double-pendulum"
+DATA = REALDATA_DFKI
 COLUMNS = "time=time,q1=pos_meas1,q2=pos_meas2,tau1=tau_meas1,tau2=tau_meas2"
 OPTIONS = ("--robot", "dfki_double_pendulum", "--columns", COLUMNS)
 FILTERS = ("--cutoff", "5", "--parallel-filter", "3")  # Hz: positions, then regressor + torque
@@ -36,8 +36,6 @@ def cli(*args):
 
 
 def runs(*k):
-    if not DATA.is_dir():
-        pytest.skip(f"real data not found at {DATA} (shared/realdata beside the repo)")
     return [DATA / f"trajectory_0{i}.csv" for i in k]
 
 

@@ -1,7 +1,7 @@
 """Real data: the DFKI double pendulum (design A.0), conditioning + least squares.
 
-The model check runs always; the identification needs ../shared/realdata (skipped if absent).
-Published values: shared/realdata/dfki-double-pendulum/published_parameters_design_A.0_model_2.0.yml
+The model check and the identification (real runs in tests/data/dfki-double-pendulum).
+Published values: tests/data/dfki-double-pendulum/published_parameters_design_A.0_model_2.0.yml
 """
 
 from __future__ import annotations
@@ -11,12 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from realdata import DFKI as REALDATA_DFKI
 
 from guardid.conditioning import condition, parallel_filter
 from guardid.dynamics import build_model
 from guardid.robot import load_robot
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "realdata" / "dfki-double-pendulum"
+DATA = REALDATA_DFKI
 PUB = dict(
     m1=0.5593806151425046, m2=0.6043459469186889, r1=0.3, r2=0.18377686083653508,
     I1=0.053470810264216295, I2=0.02392374528789766, Ir=7.659297952841183e-05,
@@ -95,8 +96,6 @@ def test_yaml_reproduces_closed_form_model(model):
 
 
 def _runs():
-    if not DATA.is_dir():
-        pytest.skip(f"real data not found at {DATA} (shared/realdata beside the repo)")
     pub = yaml.safe_load((DATA / "published_parameters_design_A.0_model_2.0.yml").read_text())
     for k, v in PUB.items():
         assert pub[k] == pytest.approx(v)

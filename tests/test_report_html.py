@@ -162,10 +162,11 @@ def test_report_renders_in_chromium_with_every_section(report, tmp_path):
     assert len(np.unique(flat, axis=0)) > 50
 
 
-def test_docs_screenshot_is_in_the_readme():
+def test_docs_screenshot_is_in_the_docs_the_readme_links():
     root = Path(__file__).resolve().parents[1]
     assert (root / "docs" / "report.png").exists()
-    assert "docs/report.png" in (root / "README.md").read_text(encoding="utf-8")
+    assert "](report.png)" in (root / "docs" / "IDENTIFY.md").read_text(encoding="utf-8")
+    assert "docs/IDENTIFY.md#the-report" in (root / "README.md").read_text(encoding="utf-8")
 
 
 def test_validation_report_renders_with_every_section(report, tmp_path):

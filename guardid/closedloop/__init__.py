@@ -26,8 +26,8 @@ STD_NOT_HONEST = {
     "truth within 3 std in 87 % of pairs, biases up to 3.0 std (MY2; MX2R 2.7); IV's std "
     "held (100 %, biases <= 0.39 std)"
 }
-"""Closed-loop methods whose reported std fails the Monte Carlo (README, issue 27): the table
-labels their column, params.yaml marks ``std_honest: false``, and a warning says why."""
+"""Closed-loop methods whose reported std fails the Monte Carlo (docs/RESULTS.md, issue 27):
+the table labels their column, params.yaml marks ``std_honest: false``, and a warning says why."""
 
 
 def fit_closed_loop(method, A, y, rows, inputs, description, model, free, flags):

@@ -242,7 +242,7 @@ def _capture(
             click.echo(
                 f"note: {trajectory_path} repeats every {trajectory.period:g} s; a change is "
                 f"tracked within about one period (for {TRACKING_PERIOD_S:g} s: guardid excite "
-                "--base-freq 0.2 --harmonics 3, README 'Excitation for tracking')",
+                "--base-freq 0.2 --harmonics 3, docs/CAPTURE.md 'Excitation for tracking')",
                 err=True,
             )
     port_url = f"sim://{robot}" if port is None else port

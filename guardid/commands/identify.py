@@ -418,13 +418,44 @@ def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, force, 
     error in its unit and the relative error (not for a passive joint).
     """
     from guardid.commands.outputs import check_output
-    from guardid.identify import validation as v
 
     inputs = [("LOG", x) for x in log] + [("--params", x) for x in params_paths]
     check_output(report_path, inputs, option="--report", force=force)
+    keep = {}
+    click.echo(scored(log, params_paths, robot, cutoff, parallel_hz, foreign, keep,
+                      rows=bool(report_path), simulate=simulate))  # fmt: skip
+    description, sets, current_units = keep["description"], keep["sets"], keep["current_units"]
+    runs = keep["runs"]
+    replayed = {} if report_path and simulate else None
+    if simulate:
+        from guardid.replay import replay_sets, table, yaml_set
+
+        scores = replay_sets(runs, log, description, [yaml_set(description), *sets], replayed)
+        click.echo(table(scores, description))
+        if replayed is not None:
+            replayed["scores"] = scores
+    if report_path:
+        from guardid.commands.outputs import write_text
+        from guardid.report.cli import validate_page
+
+        page = validate_page(description, log, sets, keep, current_units, runs, replayed)
+        write_text(report_path, page, "--report")
+        click.echo(f"report written to {report_path}")
+
+
+def scored(logs, params_paths, robot, cutoff, parallel_hz, foreign, keep: dict, rows=True,
+           simulate=False) -> str:  # fmt: skip
+    """What ``guardid validate`` prints: every set of ``params_paths`` scored on ``logs``
+    under one conditioning (the first params file's, ``cutoff`` / ``parallel_hz`` [Hz]
+    override it). ``keep`` receives ``description``, ``sets``, ``current_units``, ``runs``
+    and, with ``rows``, what :func:`guardid.identify.validation.validate_runs` keeps
+    (``scores``, the conditioned rows, the predictions). ``simulate``: first check that the
+    runs and sets can be replayed (``validate --simulate``), one line each when not."""
+    from guardid.identify import validation as v
+
     first = v.first_params(params_paths)
     spec = robot or (v.stored_robot(*first) if first else None)
-    runs, description = _load_all(log, spec, foreign)
+    runs, description = _load_all(logs, spec, foreign)
     if first:
         from guardid.identify.checks import check_params_robot
 
@@ -447,20 +478,6 @@ def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, force, 
         unit = first[1].get("torque_unit")
         raise ConfigError(f"--simulate: {first[0]}: torque_unit {unit}: a set in current "
                           "units has no rigid body in N m to simulate")  # fmt: skip
-    keep = {} if report_path else None
-    click.echo(v.validate_runs(runs, log, description, sets, options, current_units, keep=keep))
-    replayed = {} if report_path and simulate else None
-    if simulate:
-        from guardid.replay import replay_sets, table, yaml_set
-
-        scores = replay_sets(runs, log, description, [yaml_set(description), *sets], replayed)
-        click.echo(table(scores, description))
-        if replayed is not None:
-            replayed["scores"] = scores
-    if report_path:
-        from guardid.commands.outputs import write_text
-        from guardid.report.cli import validate_page
-
-        page = validate_page(description, log, sets, keep, current_units, runs, replayed)
-        write_text(report_path, page, "--report")
-        click.echo(f"report written to {report_path}")
+    keep.update(description=description, sets=sets, current_units=current_units, runs=runs)
+    kept = keep if rows else None
+    return v.validate_runs(runs, logs, description, sets, options, current_units, keep=kept)

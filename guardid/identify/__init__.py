@@ -1,6 +1,6 @@
 """Identification: from runs (logs) to base parameters by registered estimators, and motors.
 
-In five lines (docs/CONTRACTS.md, README "Python API")::
+In five lines (docs/CONTRACTS.md, docs/API.md)::
 
     from guardid.identify import IdentifyOptions, identify, load_run
     from guardid.robot import load_robot

@@ -164,6 +164,7 @@ def score_sets(rows_per_run, sets, run_names, current_units=False, preds=None) -
     from guardid.identify.rows import predicted_effort
 
     out = []
+    models = {}  # one model per description (its base parameters cost a QR each build)
     for cond, name in zip(rows_per_run, run_names, strict=True):
         m = cond.mask
         tau = cond.tau[m]
@@ -173,7 +174,9 @@ def score_sets(rows_per_run, sets, run_names, current_units=False, preds=None) -
         rms_tau = np.sqrt(np.sum(tau**2, axis=0) / n_j)
         passive = rms_tau < PASSIVE_FRACTION * rms_tau.max()
         for s in sets:
-            model = build_model(s.description)
+            if id(s.description) not in models:
+                models[id(s.description)] = build_model(s.description)
+            model = models[id(s.description)]
             theta = np.array([s.values[n] for n in model.base.names])
             pred = predicted_effort(cond, model, theta)
             if preds is not None:

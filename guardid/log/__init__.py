@@ -1,4 +1,4 @@
-"""The capture log: CSV with a commented YAML header and footer (format in README.md)."""
+"""The capture log: CSV with a commented YAML header and footer (format in docs/LOG_FORMAT.md)."""
 
 from guardid.log.csvlog import LogWriteError, LogWriter, column_names
 from guardid.log.reader import LogData, read_log

@@ -115,7 +115,12 @@ def _unknown(section: dict, names: set, filename: str, key: str) -> None:
 def _read_urdf(path: Path):
     if not path.is_file():
         raise ConfigError(f"{path}: no such robot file")
-    import yourdfpy  # heavy (trimesh): only when a URDF is read
+    try:
+        import yourdfpy  # heavy (trimesh, lxml): only when a URDF is read, an extra
+    except ImportError:
+        raise ConfigError(
+            f"{path.name}: reading a URDF needs yourdfpy: pip install 'guardid[urdf]'"
+        ) from None
 
     try:
         urdf = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False)
