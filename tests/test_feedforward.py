@@ -247,3 +247,16 @@ def test_footer_tracking_error_matches_numpy_and_feedforward_cuts_it(tmp_path):
         rms[kind] = np.array([footer["tracking_error"][j]["rms_rad"] for j in ("pan", "tilt")])
         assert ("# feedforward: null" in log.read_text()) == (kind == "pid")
     assert np.all(rms["ff"] * 10 < rms["pid"]), rms
+
+
+def test_feedforward_with_reconnect_is_refused_before_anything(tmp_path):
+    """--feedforward with --reconnect: a resumed run's slow approach has no feedforward, so
+    the pair is refused in one line (exit 2) naming both options, before any port or log."""
+    traj = gentle_trajectory(tmp_path / "t.yaml")
+    log = tmp_path / "run.csv"
+    with witnessed() as robots:
+        res = _run(["--trajectory", traj, "--duration", 2, "--feedforward",
+                    _true_params(tmp_path), "--reconnect", 5, "-o", log])  # fmt: skip
+    line = _one_line_exit_2(res)
+    assert "--feedforward" in line and "--reconnect" in line
+    assert robots == [] and not log.exists()
