@@ -180,9 +180,9 @@ def test_simulate_signalled_mid_run(tmp_path, monkeypatch, signum):
 
 def test_excite_signalled_while_optimising(tmp_path, monkeypatch):
     """Ctrl-C in the optimiser (was: a traceback or Aborted!): one line, 130, no file."""
-    from guardid.excitation import optimise
+    import scipy.optimize  # guardid.excitation.optimise imports minimize when it runs
 
-    _kill_self_at(monkeypatch, optimise, "minimize", signal.SIGINT)
+    _kill_self_at(monkeypatch, scipy.optimize, "minimize", signal.SIGINT)
     res = invoke("excite", "--starts", "1", "-o", tmp_path / "t.yaml")
     assert res.exit_code == 130, res.stderr
     assert res.stderr.splitlines() == ["guardid: interrupted (SIGINT)"]
