@@ -225,6 +225,10 @@ class HopfieldMethod(Method):
             "online_end": online_end,
             "settled": hop.settle,
         }
+        why = hopfield_limits(rows.A, start, rows.ls.theta_, hop.beta, rows.dt, hop.passes,
+                              rows.names)  # fmt: skip
+        if why:
+            settings["why_not_converged"] = why
         return MethodFit.of(est, settings=settings, extra=extra)
 
 
@@ -347,6 +351,40 @@ def rls_p0(A) -> float:
     then ends within ~1e-8 relative of LS)."""
     scale = float(np.mean(np.square(A)))
     return 1e10 / scale if scale > 0 else 1e10
+
+
+REACH_TIME_CONSTANTS = 3.0
+"""The Hopfield network's slowest direction must get at least this many of its time
+constants over the log (e^-3: 5 % of its starting error left) to be called able to converge."""
+
+
+def hopfield_limits(A, nominal, theta_ls, beta: float, dt: float, passes: int, names) -> str:
+    """Why the Hopfield network cannot reach least squares' solution on these rows, or "":
+    its slowest direction gets fewer than :data:`REACH_TIME_CONSTANTS` time constants over
+    the log (near the box's centre the network is ds/dt = -(dt/beta) S A^T A S s per row, S
+    the box's half-widths, so the log gives the direction of the smallest eigenvalue lam of
+    S A^T A S a reach of passes x (dt / beta) x lam time constants; away from the centre it
+    is slower still), or least squares' value of a parameter lies outside the network's box
+    (nominal +- its half-width), which the network cannot leave. ``A`` (M, n, b) or (M, b)."""
+    half = hopfield_half_widths(np.asarray(nominal, dtype=float))
+    A = np.asarray(A)
+    B = A.reshape(-1, A.shape[-1]) * half  # (rows x outputs, b)
+    lam = float(np.linalg.eigvalsh(B.T @ B)[0])
+    reach = max(int(passes), 1) * dt / beta * max(lam, 0.0)
+    out = []
+    if reach < REACH_TIME_CONSTANTS:
+        out.append(
+            f"over the log its slowest direction gets {reach:.2g} of its time constants "
+            f"(at least {REACH_TIME_CONSTANTS:g} needed): a smaller --beta or a longer log"
+        )
+    lo, hi = np.asarray(nominal) - half, np.asarray(nominal) + half
+    outside = [n for n, v, a, b in zip(names, theta_ls, lo, hi, strict=True) if not a <= v <= b]
+    if outside:
+        out.append(
+            f"least squares puts {', '.join(outside)} outside its box (the robot "
+            "description's value +-100 %): the description's values are far off"
+        )
+    return "; ".join(out)
 
 
 def hopfield_half_widths(nominal: np.ndarray) -> np.ndarray:

@@ -78,7 +78,9 @@ def mark_not_converged(results, ls) -> list[str]:
             out.append(
                 f"{m.upper()}: not converged: in-sample error {100 * r.d_stacked:.1f} % against "
                 f"LS's {100 * ref:.1f} % (its values are not an equal of LS's)"
-            )
+                + (f"; why: {r.settings['why_not_converged']}"
+                   if r.settings.get("why_not_converged") else "")
+            )  # fmt: skip
     return out
 
 
