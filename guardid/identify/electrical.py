@@ -50,16 +50,15 @@ def identify_motor(
     current_a: np.ndarray,
     gear_ratio: float,
     period_s: float,
-    with_inductance: bool = False,
-    min_current_a: float = 0.0,
-    current_noise_a: float = 0.0,
-    count_rad: float = 0.0,
+    **options,
 ) -> MotorEstimate:
     """Least squares on the period-averaged motor equation of one joint.
 
     ticks: tick numbers (gaps allowed: only consecutive pairs are used); q_rad: joint angle
     at each tick [rad]; voltage_v, current_a: period means [V, A]; gear_ratio N;
-    period_s: sample period T [s]. Rows with |i| < min_current_a are dropped.
+    period_s: sample period T [s]. ``options``: with_inductance (bool), min_current_a,
+    current_noise_a, count_rad (:func:`identify_motor_runs`). Rows with |i| <
+    min_current_a are dropped.
     :func:`identify_motor_runs` for several runs (no pair of ticks spans two).
 
     The regressors are measured too: the current with the ADC's noise and the angle
@@ -70,10 +69,8 @@ def identify_motor(
     (bias-compensated least squares).
     """
     return identify_motor_runs(
-        joint, [(ticks, q_rad, voltage_v, current_a)], gear_ratio, period_s,
-        with_inductance=with_inductance, min_current_a=min_current_a,
-        current_noise_a=current_noise_a, count_rad=count_rad,
-    )  # fmt: skip
+        joint, [(ticks, q_rad, voltage_v, current_a)], gear_ratio, period_s, **options
+    )
 
 
 def _motor_rows(runs, gear_ratio, period_s, with_inductance, min_current_a):
