@@ -46,7 +46,7 @@ def replay(tracker, t_s, q_rad, current_a, voltage_v=None) -> list:
     cond = tk.conditioner
     lag, g, warmup = tk._lag, tk.guard, tk.warmup
     flags = np.zeros((N, n), dtype=bool)  # the stream's flag ring, unrolled
-    keep = []  # (row k, sample j = k - lag) of the rows the guard releases
+    keep = [[] for _ in range(6)]  # per segment: rows k, bad, q, qd, qdd, tau released
     for s, e in zip(starts, ends, strict=True):
         x = np.concatenate([q[s:e], effort[s:e]], axis=1)
         zi = sosfilt_zi(cond.sos)[:, :, None] * x[0][None, None, :]
@@ -87,9 +87,12 @@ def replay(tracker, t_s, q_rad, current_a, voltage_v=None) -> list:
             bad[:] = bad.any(axis=1, keepdims=True)
         use = ~bad.all(axis=1)
         kk, local = kk[use], kk[use] - s
-        keep.append((kk, bad[use], y1[local, :n], qd[local], qdd[local], tau[local]))
-    rows_k, bad, qf, qd, qdd, tau = (np.concatenate([p[i] for p in keep]) for i in range(6))
-    del keep, flags
+        for part, x in zip(keep, (kk, bad[use], y1[local, :n], qd[local], qdd[local],
+                                  tau[local]), strict=True):  # fmt: skip
+            part.append(x)
+    del flags, x, y, full, y0, y1, y2, qd, qdd, tau, slow, mark
+    rows_k, bad, qf, qd, qdd, tau = (_joined(part) for part in keep)
+    del keep
     t_use = t[rows_k] - cond.delay_s
     tk.rows = N
     tk._k = N - 1
@@ -116,6 +119,16 @@ def replay(tracker, t_s, q_rad, current_a, voltage_v=None) -> list:
     tk.reports += reports
     tk.busy_s = time.perf_counter() - started
     return reports
+
+
+def _joined(parts: list) -> np.ndarray:
+    """The segments' pieces of one field in one array, each piece released as soon as it is
+    copied (one field's copy at a time; none for a single segment)."""
+    if len(parts) == 1:
+        return parts.pop()
+    out = np.concatenate(parts)
+    parts.clear()
+    return out
 
 
 def _equations(tk, q, qd, qdd, tau):
