@@ -294,3 +294,78 @@ def test_rows_of_other_positions_line_up_with_the_measured_ones(plant_run):
     assert true.shape == rows.A.shape
     rel = np.linalg.norm(true - rows.A) / np.linalg.norm(rows.A)
     assert 0 < rel < 0.05
+
+
+def _whole_stretches(Phi, imp, valid, sos, skip):
+    """Reference for the chunked filter: the whole log's period regressor in one array, each
+    joint's valid stretches filtered in one ``sosfilt`` call from rest (the form before
+    issue 30's chunks): (A (N, n, b), y (N, n), good (N, n)) on every tick."""
+    from scipy.signal import sosfilt
+
+    A, y = np.zeros_like(Phi), np.zeros(Phi.shape[:2])
+    good = np.zeros(Phi.shape[:2], dtype=bool)
+    for j in range(Phi.shape[1]):
+        for s in range(len(Phi)):
+            if valid[s, j] and (s == 0 or not valid[s - 1, j]):
+                e = s + int(np.argmin(np.append(valid[s:, j], False)))
+                out = sosfilt(sos, np.column_stack([imp[s:e, j], Phi[s:e, j, :]]), axis=0)
+                y[s + skip : e, j], A[s + skip : e, j] = out[skip:, 0], out[skip:, 1:]
+                good[s + skip : e, j] = True
+    return A, y, good
+
+
+def test_chunked_rows_equal_the_whole_log_filtered_at_once(plant_run, monkeypatch, chunk=29):
+    """Issue 30: the period regressor formed by chunks of ``chunk`` ticks (with their
+    neighbours) and the filter's state carried across chunk boundaries give the rows of the
+    whole log's regressor filtered in one pass per stretch (an independent loop,
+    ``_whole_stretches``), with stretches cut mid-chunk (a lost tick, a stuck joint) and
+    chunks where a joint is cut throughout, between two where it is not (a filter state
+    carried over them was caught here; not with 61-tick chunks). Tolerance 1e-12 of each
+    column's peak: the arithmetic is the same element by element; only the BLAS product
+    with the base matrix sees other row counts (bit-equal on the 2-core EPYC)."""
+    t, q, _, i_mean, q_meas, _ = plant_run
+    desc = load_robot("guard")
+    model = build_model(desc)
+    keep = np.ones(len(t), bool)
+    keep[1000] = False
+    t, q, i_mean = t[keep], q_meas[keep], i_mean[keep]
+    kw = {"gain": drive_gain(desc), "cutoff_hz": 2.0, "stiction_threshold": 0.03}
+    monkeypatch.setattr(mom, "TICKS_CHUNK", chunk)
+    cond, A, y = mom.condition_momentum(t, q, i_mean, model, **kw)
+    st = cond.momentum
+    assert len(t) // chunk > 20 and (st.valid[:, 0] != st.valid[:, 1]).any()  # per-joint cuts
+
+    dt = st.dt
+    Phi = mom.period_regressor(model, st.q, st.v, dt, st.kink)
+    imp = mom.period_impulse(i_mean, dt, drive_gain(desc), False)
+    imp += mom.kink_correction(imp / dt, dt, 3)
+    imp -= mom.electrical_damping(desc, drive_gain(desc)) * mom.slope_term(st.v, dt, 3)
+    A_ref, y_ref, good = _whole_stretches(Phi, imp, st.valid, st.sos, st.skip)
+    np.testing.assert_array_equal(st.row_mask, good[st.rows])
+    scale = np.abs(A_ref).max(axis=(0, 1))
+    np.testing.assert_allclose(A * dt, A_ref[st.rows], rtol=0, atol=1e-12 * scale.max())
+    np.testing.assert_allclose(y * dt, y_ref[st.rows], rtol=0, atol=1e-12 * np.abs(y_ref).max())
+    assert cond.dropped["in the filter's start after a cut"] == round(
+        (st.valid & ~good).sum() / st.rows[1]
+    )
+    # another model's rows on the same cuts (validation, instruments)
+    again = mom.regressor_rows(st, model)
+    np.testing.assert_allclose(again, A, rtol=0, atol=1e-12 * scale.max() / dt)
+
+
+def test_chunked_identification_equals_the_unchunked_one(plant_run, monkeypatch):
+    """identify's estimates and their std with chunks of 61 ticks equal those with the whole
+    log in one chunk (to 1e-9 relative: the same rows to 1e-12, through one solve)."""
+    from guardid.identify.pipeline import IdentifyOptions, identify, run_from_arrays
+
+    t, _, _, _, q_meas, i_meas = plant_run
+    desc = load_robot("guard")
+    run = run_from_arrays(t, q_meas, i_meas, highest_harmonic_hz=0.83)
+    fits = []
+    for chunk in (10**9, 61):
+        monkeypatch.setattr(mom, "TICKS_CHUNK", chunk)
+        res = identify([run], desc, IdentifyOptions(methods=("ls", "wls")))
+        fits.append([(r.theta, r.std) for r in res.results.values()])
+    for (th0, sd0), (th1, sd1) in zip(*fits, strict=True):
+        np.testing.assert_allclose(th1, th0, rtol=1e-9, atol=1e-9 * np.abs(th0).max())
+        np.testing.assert_allclose(sd1, sd0, rtol=1e-9)

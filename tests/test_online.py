@@ -248,6 +248,31 @@ def test_motor_equation_current_fits_r_and_ke_from_a_wrong_yaml(runs):
     assert np.all(np.abs((est[late] - run.current[late]).mean(axis=0)) < 1e-3)
 
 
+def test_motor_current_replay_by_chunks_is_the_row_by_row_fit(runs, monkeypatch):
+    """Issue 30 (memory): MotorCurrent.replay run 7 rows at a time (its running sums' filter
+    states carried across chunks, a gap inside) gives the currents and the final fit of
+    update() row by row (an independent form, the covariance recursion) to 1e-9."""
+    from guardid.online import motor as motor_mod
+
+    run = load_run(runs["calm"])
+    n = 300
+    v, q, i = run.voltage[:n], run.q[:n], run.current[:n]
+    first = np.zeros(n, bool)
+    first[100] = True  # a gap: no previous angle
+    live = motor_mod.MotorCurrent(GUARD)
+    est = []
+    for k in range(n):
+        if first[k]:
+            live.reset()
+        est.append(live.update(v[k], q[k], i[k]))
+    monkeypatch.setattr(motor_mod, "REPLAY_CHUNK", 7)
+    replayed = motor_mod.MotorCurrent(GUARD)
+    out = replayed.replay(v, q, i, first)
+    np.testing.assert_allclose(out, np.array(est), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(replayed._theta, live._theta, rtol=1e-9)
+    np.testing.assert_allclose(replayed._P, live._P, rtol=1e-7)
+
+
 def test_current_sensor_effort_tracks_the_payload_too(runs):
     """``effort='current'`` (the sensor alone, as for a log without voltages): the change is
     reported within 1 s of the truth and MX2R settles; MY2 is noisier (not asserted)."""

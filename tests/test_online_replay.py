@@ -128,6 +128,22 @@ def test_replay_with_gaps_restarts_as_the_stream_does(payload_log):
     _assert_same(*_both(run, trajectory, keep=keep))
 
 
+def test_replay_by_short_chunks_with_gaps_is_the_stream(payload_log, monkeypatch):
+    """Issue 30 (memory): the conditioning of each run between gaps 37 rows at a time (the
+    filter's state and last outputs carried over, each row released once the flags within
+    its guard are final) and the motor-equation current 37 rows at a time: still the live
+    tracker's rows, estimates and reports (chunk boundaries near the gaps and the payload)."""
+    from guardid.online import motor, replay
+
+    monkeypatch.setattr(replay, "SEGMENT_CHUNK", 37)
+    monkeypatch.setattr(motor, "REPLAY_CHUNK", 37)
+    run, trajectory = payload_log
+    keep = np.ones(len(run.ticks), dtype=bool)
+    keep[700:712] = False
+    keep[[1200, 1203, 1900]] = False
+    _assert_same(*_both(run, trajectory, keep=keep))
+
+
 @pytest.mark.parametrize("options", [{"effort": "current"}, {"per_joint": False}])
 def test_replay_options_match_the_stream(payload_log, options):
     run, trajectory = payload_log

@@ -359,37 +359,67 @@ def period_validity(n_t, broken, vel_reach, bad):
     return ok[:, None] & ~near
 
 
-def _filter_stretches(Phi, imp, valid, sos, skip: int):
-    """Each joint's valid stretches filtered (at rest at every start; the first ``skip``
-    outputs dropped): (A (N, n, b), y (N, n), good (N, n)) on every tick."""
-    n_t, n, b = Phi.shape
-    A = np.zeros_like(Phi)
-    y = np.zeros((n_t, n))
-    good = np.zeros((n_t, n), dtype=bool)
-    for j in range(n):
-        v = np.concatenate([[False], valid[:, j], [False]])
-        starts = np.flatnonzero(~v[:-1] & v[1:])
-        ends = np.flatnonzero(v[:-1] & ~v[1:])
-        for s, e in zip(starts, ends, strict=True):
-            if e - s <= skip:
-                continue
-            block = np.column_stack([imp[s:e, j], Phi[s:e, j, :]])
-            out = sosfilt(sos, block, axis=0)
-            y[s + skip : e, j] = out[skip:, 0]
-            A[s + skip : e, j, :] = out[skip:, 1:]
-            good[s + skip : e, j] = True
-    return A, y, good
+HALO_TICKS = 8
+"""Ticks either side of a chunk whose period regressor is formed with it: the four-point
+rule and the stencil corrections make a window's first 3 and last 2 rows differ from the
+whole log's (a halo of 2 is caught by tests/test_momentum_form.py); 8 leaves room."""
 
 
-def filtered_rows(Phi, imp, valid, sos, skip: int, decimate: int):
-    """Filter each joint's valid stretches, keep every ``decimate``-th tick: (rows (M,) tick
-    indices, A (M, n, b), y (M, n), row_mask (M, n)); a joint's row is zero where its
-    filtered equation is not valid."""
-    A, y, good = _filter_stretches(Phi, imp, valid, sos, skip)
-    rows = np.arange(0, len(Phi), decimate)
-    rows = rows[np.any(good[rows], axis=1)]
-    mask = good[rows]
-    return rows, A[rows] * mask[:, :, None], y[rows] * mask, mask
+def period_chunks(model, q, v, dt: float, kink_points: int | None = None):
+    """:func:`period_regressor` by chunks of :data:`TICKS_CHUNK` ticks: yields (a, b, Phi
+    (b - a, n, b') rows a .. b - 1), each chunk formed with :data:`HALO_TICKS` neighbours
+    either side (the same numbers as the whole log's, in memory of one chunk)."""
+    n_t = len(q)
+    for a in range(0, n_t, TICKS_CHUNK):
+        b = min(a + TICKS_CHUNK, n_t)
+        lo, hi = max(a - HALO_TICKS, 0), min(b + HALO_TICKS, n_t)
+        yield a, b, period_regressor(model, q[lo:hi], v[lo:hi], dt, kink_points)[a - lo : b - lo]
+
+
+def filtered_rows(chunks, imp, valid, sos, skip: int, rows, n_cols: int):
+    """Each joint's valid stretches filtered (at rest at every start, the first ``skip``
+    outputs dropped), kept at the ticks ``rows`` (M,) only: (A (M, n, n_cols) filtered
+    regressor, y (M, n) filtered impulses (zero without ``imp``), good (M, n) filtered
+    equation valid, transient: valid periods dropped in the filters' starts).
+
+    ``chunks`` yields (a, b, Phi (b - a, n, n_cols)) over consecutive ticks
+    (:func:`period_chunks`); ``imp`` (N, n) or None; ``valid`` (N, n). The causal filter's
+    state (``sosfilt``'s zi) and each stretch's length so far carry across chunk
+    boundaries, so the numbers are those of one filter run over each whole stretch."""
+    n_t, n = valid.shape
+    A = np.zeros((len(rows), n, n_cols))
+    y = np.zeros((len(rows), n))
+    good = np.zeros((len(rows), n), dtype=bool)
+    zi, done = [None] * n, np.zeros(n, dtype=int)  # carried state, stretch length so far
+    transient = 0
+    for a, b, Phi in chunks:
+        r0, r1 = np.searchsorted(rows, [a, b])
+        for j in range(n):
+            v = np.concatenate([[False], valid[a:b, j], [False]])
+            starts = np.flatnonzero(~v[:-1] & v[1:])
+            ends = np.flatnonzero(v[:-1] & ~v[1:])
+            for s, e in zip(starts, ends, strict=True):
+                block = (
+                    Phi[s:e, j, :]
+                    if imp is None
+                    else np.column_stack([imp[a + s : a + e, j], Phi[s:e, j, :]])
+                )
+                if s > 0 or zi[j] is None:  # a new stretch: the filter at rest
+                    zi[j], done[j] = np.zeros((len(sos), 2, block.shape[1])), 0
+                out, zi[j] = sosfilt(sos, block, axis=0, zi=zi[j])
+                transient += int(min(e - s, max(skip - done[j], 0)))
+                at = np.arange(r0, r1)[(rows[r0:r1] >= a + s) & (rows[r0:r1] < a + e)]
+                i = rows[at] - (a + s)
+                ok = done[j] + i >= skip
+                at, i = at[ok], i[ok]
+                if imp is not None:
+                    y[at, j] = out[i, 0]
+                A[at, j, :] = out[i, 1:] if imp is not None else out[i]
+                good[at, j] = True
+                done[j] += e - s
+            if not valid[b - 1, j]:  # no stretch runs on into the next chunk
+                zi[j] = None
+    return A, y, good, transient
 
 
 def rows_like(state: MomentumState, model, q) -> np.ndarray:
@@ -403,9 +433,10 @@ def rows_like(state: MomentumState, model, q) -> np.ndarray:
 def regressor_rows(state: MomentumState, model) -> np.ndarray:
     """The filtered period regressor (M, n, b) of ``model`` on the rows of ``state`` (another
     parameter set's model scored on the same rows) [torque units]."""
-    Phi = period_regressor(model, state.q, state.v, state.dt, state.kink)
-    A, _, _ = _filter_stretches(Phi, np.zeros(Phi.shape[:2]), state.valid, state.sos, state.skip)
-    return A[state.rows] * state.row_mask[:, :, None] / state.dt
+    chunks = period_chunks(model, state.q, state.v, state.dt, state.kink)
+    A, _, _, _ = filtered_rows(chunks, None, state.valid, state.sos, state.skip, state.rows,
+                               model.base.B.shape[1])  # fmt: skip
+    return A * state.row_mask[:, :, None] / state.dt
 
 
 def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: int = DEFAULT_ORDER,
@@ -470,18 +501,15 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
     sos = filter_sos(cutoff_hz, fs, order)
     skip = transient_samples(sos)
     k = decimation(fs, cutoff_hz) if decimate is None else int(decimate)
-    Phi = period_regressor(model, q, v, dt, kink)
     imp = period_impulse(effort, dt, gain, effort_is_torque)
     if kink:
         imp = imp + kink_correction(imp / dt, dt, points)
         imp = imp - electrical_damping(model.description, gain) * slope_term(v, dt, points)
-    A_all, y_all, good = _filter_stretches(Phi, imp, valid, sos, skip)
-    del Phi
     rows = np.arange(0, len(t), k)
-    jm = good[rows]
-    A = A_all[rows] * jm[:, :, None] / dt
-    y = y_all[rows] * jm / dt
-    del A_all, y_all
+    chunks = period_chunks(model, q, v, dt, kink)  # only the kept rows' filtered values stay
+    A, y, jm, transient = filtered_rows(chunks, imp, valid, sos, skip, rows, model.base.B.shape[1])
+    A = A * jm[:, :, None] / dt
+    y = y * jm / dt
     mask = np.any(jm, axis=1)
     qdd = np.zeros_like(v)
     qdd[1:-1] = (v[2:] - v[:-2]) / (2.0 * dt)
@@ -510,7 +538,7 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
         "at the ends or a gap (stencils)": int(round(cut.sum() * n_j / k)),
         "near zero velocity": int(round(cut_slow.sum() / k)),
         "at or next to a hard stop": int(round(cut_stop.sum() / k)),
-        "in the filter's start after a cut": int(round((valid & ~good).sum() / k)),
+        "in the filter's start after a cut": int(round(transient / k)),
     }
     cond = Conditioned(
         t[rows], q[rows], v[rows], qdd[rows], y, mask, np.any(bad[rows], axis=1),

@@ -15,6 +15,7 @@ from importlib import import_module
 _WHERE = {
     "MotorEstimate": "electrical",
     "identify_motor": "electrical",
+    "identify_motor_runs": "electrical",
     "Method": "methods",
     "MethodFit": "methods",
     "method_names": "methods",

@@ -38,6 +38,10 @@ class MotorEstimate:
         return gear_ratio * efficiency * self.ke
 
 
+MOTOR_CHUNK = 65536
+"""Motor-equation rows formed at a time (peak memory of long logs) [rows]."""
+
+
 def identify_motor(
     joint: str,
     ticks: np.ndarray,
@@ -46,16 +50,16 @@ def identify_motor(
     current_a: np.ndarray,
     gear_ratio: float,
     period_s: float,
-    with_inductance: bool = False,
-    min_current_a: float = 0.0,
-    current_noise_a: float = 0.0,
-    count_rad: float = 0.0,
+    **options,
 ) -> MotorEstimate:
     """Least squares on the period-averaged motor equation of one joint.
 
     ticks: tick numbers (gaps allowed: only consecutive pairs are used); q_rad: joint angle
     at each tick [rad]; voltage_v, current_a: period means [V, A]; gear_ratio N;
-    period_s: sample period T [s]. Rows with |i| < min_current_a are dropped.
+    period_s: sample period T [s]. ``options``: with_inductance (bool), min_current_a,
+    current_noise_a, count_rad (:func:`identify_motor_runs`). Rows with |i| <
+    min_current_a are dropped.
+    :func:`identify_motor_runs` for several runs (no pair of ticks spans two).
 
     The regressors are measured too: the current with the ADC's noise and the angle
     difference with the encoder's quantisation. Both bias plain least squares towards zero
@@ -64,37 +68,70 @@ def identify_motor(
     ``count_rad`` [rad], their known variances are subtracted from the normal equations
     (bias-compensated least squares).
     """
-    ticks = np.asarray(ticks)
-    consecutive = np.diff(ticks) == 1
-    if with_inductance:
-        consecutive[1:] &= consecutive[:-1]
-        consecutive[0] = False
-    k = np.nonzero(consecutive)[0] + 1
-    i = np.asarray(current_a, dtype=float)
-    keep = np.abs(i[k]) >= min_current_a
-    k = k[keep]
-    cols = [i[k], gear_ratio * (q_rad[k] - q_rad[k - 1]) / period_s]
-    if with_inductance:
-        cols.append((i[k] - i[k - 1]) / period_s)
-    A = np.column_stack(cols)
-    y = np.asarray(voltage_v, dtype=float)[k]
-    if len(k) <= A.shape[1]:
-        raise GuardidError(f"joint {joint}: too few consecutive rows ({len(k)}) for the motor fit")
-    normal = A.T @ A
-    noise = np.zeros(A.shape[1])
+    return identify_motor_runs(
+        joint, [(ticks, q_rad, voltage_v, current_a)], gear_ratio, period_s, **options
+    )
+
+
+def _motor_rows(runs, gear_ratio, period_s, with_inductance, min_current_a):
+    """The motor equation's rows (A (K, 2 | 3), y (K,)) of every run (ticks, q_rad,
+    voltage_v, current_a), :data:`MOTOR_CHUNK` ticks at a time: tick k with tick k - 1
+    (and k - 2 with the inductance) the one before it."""
+    for ticks, q_rad, voltage_v, current_a in runs:
+        ticks = np.asarray(ticks)
+        i = np.asarray(current_a, dtype=float)
+        v = np.asarray(voltage_v, dtype=float)
+        for a in range(1, len(ticks), MOTOR_CHUNK):
+            k = np.arange(a, min(a + MOTOR_CHUNK, len(ticks)))
+            ok = ticks[k] - ticks[k - 1] == 1
+            if with_inductance:
+                ok &= (k >= 2) & (ticks[k - 1] - ticks[np.maximum(k - 2, 0)] == 1)
+            k = k[ok]
+            k = k[np.abs(i[k]) >= min_current_a]
+            cols = [i[k], gear_ratio * (q_rad[k] - q_rad[k - 1]) / period_s]
+            if with_inductance:
+                cols.append((i[k] - i[k - 1]) / period_s)
+            yield np.column_stack(cols), v[k]
+
+
+def identify_motor_runs(
+    joint: str,
+    runs,
+    gear_ratio: float,
+    period_s: float,
+    with_inductance: bool = False,
+    min_current_a: float = 0.0,
+    current_noise_a: float = 0.0,
+    count_rad: float = 0.0,
+) -> MotorEstimate:
+    """:func:`identify_motor` on the rows of every run (ticks, q_rad, voltage_v, current_a)
+    together, the normal equations summed over chunks of :data:`MOTOR_CHUNK` ticks (memory
+    of one chunk)."""
+    p = 3 if with_inductance else 2
+    normal, aty, rows = np.zeros((p, p)), np.zeros(p), 0
+    for A, y in _motor_rows(runs, gear_ratio, period_s, with_inductance, min_current_a):
+        normal += A.T @ A
+        aty += A.T @ y
+        rows += len(y)
+    if rows <= p:
+        raise GuardidError(f"joint {joint}: too few consecutive rows ({rows}) for the motor fit")
+    noise = np.zeros(p)
     noise[0] = current_noise_a**2
     # the difference of two independently quantised angles: variance 2 * step^2 / 12
     noise[1] = (gear_ratio / period_s) ** 2 * count_rad**2 / 6.0
     if with_inductance:
         noise[2] = 2.0 * current_noise_a**2 / period_s**2
-    normal -= len(y) * np.diag(noise)
+    normal -= rows * np.diag(noise)
     try:
-        theta = np.linalg.solve(normal, A.T @ y)
+        theta = np.linalg.solve(normal, aty)
         cov_unit = np.linalg.inv(normal)
     except np.linalg.LinAlgError:  # a motor that never turns: R and Ke not determined
-        theta, cov_unit = np.full(A.shape[1], np.nan), np.full((A.shape[1],) * 2, np.nan)
-    r = y - A @ theta
-    sigma2 = r @ r / (len(y) - A.shape[1])
+        theta, cov_unit = np.full(p, np.nan), np.full((p, p), np.nan)
+    rss = 0.0
+    for A, y in _motor_rows(runs, gear_ratio, period_s, with_inductance, min_current_a):
+        r = y - A @ theta
+        rss += float(r @ r)
+    sigma2 = rss / (rows - p)
     var = np.diag(sigma2 * cov_unit)
     std = np.sqrt(np.where(var >= 0.0, var, np.nan))  # negative: not determined (nan)
     return MotorEstimate(
@@ -104,8 +141,8 @@ def identify_motor(
         inductance=float(theta[2]) if with_inductance else None,
         resistance_std=float(std[0]),
         ke_std=float(std[1]),
-        rows=len(k),
-        residual_rms_v=float(np.sqrt(np.mean(r**2))),
+        rows=rows,
+        residual_rms_v=float(np.sqrt(rss / rows)),
     )
 
 

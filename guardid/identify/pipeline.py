@@ -23,7 +23,7 @@ from guardid.conditioning.options import ConditioningOptions
 from guardid.dynamics import build_model
 from guardid.errors import GuardidError
 from guardid.estimators import LeastSquares, d_tau
-from guardid.identify.electrical import MotorEstimate, identify_motor, motor_doubts
+from guardid.identify.electrical import MotorEstimate, identify_motor_runs, motor_doubts
 from guardid.identify.methods import FitRows, MethodFit, methods_for
 from guardid.identify.rows import (  # noqa: F401  (re-exported)
     STICTION_GUARD_PERIODS,
@@ -466,28 +466,9 @@ def _result(method, fit: MethodFit, A, y, t_rows) -> MethodResult:
     )
 
 
-def _separated_ticks(ticks_per_run) -> np.ndarray:
-    """One tick axis for stacked runs: each run's ticks shifted to start 2 after the previous
-    run's last, so that no pair of consecutive ticks spans two runs."""
-    out, start = [], 0
-    for ticks in ticks_per_run:
-        ticks = np.asarray(ticks, dtype=np.int64)
-        out.append(ticks - ticks[0] + start)
-        start = int(out[-1][-1]) + 2
-    return np.concatenate(out)
-
-
 def _motors(description, runs) -> list[MotorEstimate]:
-    """Each driven, encoded joint's R and Ke from every run's ticks, q, voltage and current."""
-    if len(runs) == 1:
-        ticks, q_rad, voltage_v, current_a = (runs[0].ticks, runs[0].q, runs[0].voltage,
-                                              runs[0].current)  # fmt: skip
-    else:  # stacked, each run's ticks shifted so that no pair of ticks spans two runs
-        ticks = _separated_ticks([r.ticks for r in runs])
-        q_rad, voltage_v, current_a = (
-            np.concatenate([np.asarray(getattr(r, k), dtype=float) for r in runs])
-            for k in ("q", "voltage", "current")
-        )
+    """Each driven, encoded joint's R and Ke from every run's ticks, q, voltage and current
+    (no pair of ticks spans two runs; the rows are formed by chunks, not stacked)."""
     out = []
     period = description.sample_period
     for j, joint in enumerate(description.joints):
@@ -500,12 +481,17 @@ def _motors(description, runs) -> list[MotorEstimate]:
             noise = math.sqrt(cs.noise**2 + step**2 / 12.0)
         count = 2 * math.pi / (joint.encoder.counts_per_rev * joint.drive.gear_ratio)
         out.append(
-            identify_motor(
+            identify_motor_runs(
                 joint.name,
-                np.asarray(ticks),
-                np.asarray(q_rad)[:, j],
-                np.asarray(voltage_v)[:, j],
-                np.asarray(current_a)[:, j],
+                [
+                    (
+                        r.ticks,
+                        np.asarray(r.q)[:, j],
+                        np.asarray(r.voltage)[:, j],
+                        np.asarray(r.current)[:, j],
+                    )
+                    for r in runs
+                ],  # fmt: skip
                 joint.drive.gear_ratio,
                 period,
                 current_noise_a=noise,

@@ -25,6 +25,9 @@ PRIOR_REL = 3.0
 """Prior standard deviation of a and c, relative to the YAML values (a rough guide: V and
 Ke N dq/T nearly cancel, so a tight prior would bias a and c along that direction) [-]."""
 
+REPLAY_CHUNK = 65536
+"""Rows :meth:`MotorCurrent.replay` runs at a time (peak memory of long logs)."""
+
 
 class MotorCurrent:
     """Period-mean motor currents [A] from voltages and encoder angles (module docstring).
@@ -102,25 +105,31 @@ class MotorCurrent:
         upd = np.flatnonzero(~first)
         if upd.size == 0:
             return out
-        phi_v = v[upd]
-        phi_w = -(q[upd] - q[upd - 1]) / self.dt
-        cur = out[upd]
         lam = self.lam
         R0 = np.linalg.inv(self._P)  # (n, 2, 2)
         b0 = np.einsum("nij,nj->ni", R0, self._theta)
+        # the five running sums' filter states, s_k = lam s_k-1 + x_k from s_0 = init
+        state = [(lam * x)[None, :] for x in (R0[:, 0, 0], R0[:, 0, 1], R0[:, 1, 1], b0[:, 0],
+                                              b0[:, 1])]  # fmt: skip
 
-        def run(x, init):  # s_k = lam s_k-1 + x_k from s_0 = init, per joint column
-            return lfilter([1.0], [1.0, -lam], x, axis=0, zi=(lam * init)[None, :])[0]
+        def run(x, which):  # per joint column, the state carried from the previous chunk
+            y, state[which] = lfilter([1.0], [1.0, -lam], x, axis=0, zi=state[which])
+            return y
 
-        r00 = run(phi_v * phi_v, R0[:, 0, 0])
-        r01 = run(phi_v * phi_w, R0[:, 0, 1])
-        r11 = run(phi_w * phi_w, R0[:, 1, 1])
-        b0_ = run(phi_v * cur, b0[:, 0])
-        b1_ = run(phi_w * cur, b0[:, 1])
-        det = r00 * r11 - r01 * r01
-        a = (r11 * b0_ - r01 * b1_) / det
-        c = (r00 * b1_ - r01 * b0_) / det
-        out[upd] = phi_v * a + phi_w * c
+        for c0 in range(0, len(upd), REPLAY_CHUNK):  # bounded memory, the same numbers
+            u = upd[c0 : c0 + REPLAY_CHUNK]
+            phi_v = v[u]
+            phi_w = -(q[u] - q[u - 1]) / self.dt
+            cur = out[u]
+            r00 = run(phi_v * phi_v, 0)
+            r01 = run(phi_v * phi_w, 1)
+            r11 = run(phi_w * phi_w, 2)
+            b0_ = run(phi_v * cur, 3)
+            b1_ = run(phi_w * cur, 4)
+            det = r00 * r11 - r01 * r01
+            a = (r11 * b0_ - r01 * b1_) / det
+            c = (r00 * b1_ - r01 * b0_) / det
+            out[u] = phi_v * a + phi_w * c
         self._theta = np.stack([a[-1], c[-1]], axis=1)
         R = np.stack([np.stack([r00[-1], r01[-1]], -1), np.stack([r01[-1], r11[-1]], -1)], -2)
         self._P = np.linalg.inv(R)

@@ -44,52 +44,13 @@ def replay(tracker, t_s, q_rad, current_a, voltage_v=None) -> list:
     starts = np.flatnonzero(new_run)
     ends = np.append(starts[1:], N)
     cond = tk.conditioner
-    lag, g, warmup = tk._lag, tk.guard, tk.warmup
     flags = np.zeros((N, n), dtype=bool)  # the stream's flag ring, unrolled
-    keep = []  # (row k, sample j = k - lag) of the rows the guard releases
+    keep = [[] for _ in range(6)]  # rows k, bad, q, qd, qdd, tau released, by chunks
     for s, e in zip(starts, ends, strict=True):
-        x = np.concatenate([q[s:e], effort[s:e]], axis=1)
-        zi = sosfilt_zi(cond.sos)[:, :, None] * x[0][None, None, :]
-        y, _ = sosfilt(cond.sos, x, axis=0, zi=zi)
-        full = np.concatenate([np.repeat(x[:1], 2, axis=0), y], axis=0)
-        y0, y1, y2 = full[2:], full[1:-1], full[:-2]
-        dt = cond.dt
-        qd = (y0[:, :n] - y2[:, :n]) / (2.0 * dt)
-        qdd = (y0[:, :n] - 2.0 * y1[:, :n] + y2[:, :n]) / (dt * dt)
-        tau = 0.5 * (y0[:, n:] + y1[:, n:]) if cond.period_mean else y1[:, n:]
-        if cond.gain is not None:
-            tau = tau * cond.gain
-        slow = (
-            np.abs(qd) < cond.threshold if cond.threshold is not None else np.zeros_like(qd, bool)
-        )
-        flat = q[s + 1 : e] == q[s : e - 1]  # no count in the period: both rows flagged
-        flags[s + 1 : e] |= flat
-        flags[s : e - 1] |= flat
-        k = np.arange(s, e)
-        j = k - lag
-        warm = j < s + warmup
-        mark = slow if tk.per_joint else np.repeat(slow.any(axis=1, keepdims=True), n, 1)
-        ok = j >= 0
-        flags[j[ok & ~warm]] |= mark[ok & ~warm]
-        flags[j[ok & warm]] = True
-        released = k + g <= e - 1  # the guard's pending rows at a gap or the end are dropped
-        released &= j >= 0  # a sample before the first row is in the warm-up: never used
-        kk, jj = k[released], j[released]
-        # bad joints of a released row: any flag within the guard of its sample, j-g .. j+g;
-        # the segment's flags are final here (a later segment only flags its own warm-up)
-        lo = s - lag - 2 * g
-        seg_flags = flags[max(lo, 0) : e]
-        if lo < 0:
-            seg_flags = np.concatenate([np.zeros((-lo, n), bool), seg_flags])
-        csum = np.concatenate([np.zeros((1, n), np.int64), np.cumsum(seg_flags, axis=0)])
-        bad = (csum[jj + g + 1 - lo] - csum[jj - g - lo]) > 0
-        if not tk.per_joint:
-            bad[:] = bad.any(axis=1, keepdims=True)
-        use = ~bad.all(axis=1)
-        kk, local = kk[use], kk[use] - s
-        keep.append((kk, bad[use], y1[local, :n], qd[local], qdd[local], tau[local]))
-    rows_k, bad, qf, qd, qdd, tau = (np.concatenate([p[i] for p in keep]) for i in range(6))
-    del keep, flags
+        _segment(tk, q, effort, flags, s, e, keep)
+    del flags
+    rows_k, bad, qf, qd, qdd, tau = (_joined(part) for part in keep)
+    del keep
     t_use = t[rows_k] - cond.delay_s
     tk.rows = N
     tk._k = N - 1
@@ -116,6 +77,95 @@ def replay(tracker, t_s, q_rad, current_a, voltage_v=None) -> list:
     tk.reports += reports
     tk.busy_s = time.perf_counter() - started
     return reports
+
+
+SEGMENT_CHUNK = 65536
+"""Rows of a run between gaps conditioned at a time (the filter's state and its last two
+outputs carried over; peak memory of long logs)."""
+
+
+def _segment(tk, q, effort, flags, s, e, keep) -> None:
+    """Rows s .. e - 1 (a run between gaps) through the causal conditioning by chunks of
+    :data:`SEGMENT_CHUNK` rows: the stream's flags set in ``flags`` (N, n), the rows the
+    guard releases and some joint uses appended to ``keep`` (rows k, bad, q, qd, qdd,
+    tau), each as soon as the flags within its guard are final."""
+    cond, n = tk.conditioner, q.shape[1]
+    lag, g, warmup, dt = tk._lag, tk.guard, tk.warmup, cond.dt
+    x0 = np.concatenate([q[s], effort[s]])
+    zi = sosfilt_zi(cond.sos)[:, :, None] * x0[None, None, :]
+    prev = np.repeat(x0[None, :], 2, axis=0)  # the two outputs before the chunk
+    pending = []  # released rows (k, q, qd, qdd, tau) whose guard's flags may still change
+    for cs in range(s, e, SEGMENT_CHUNK):
+        ce = min(cs + SEGMENT_CHUNK, e)
+        y, zi = sosfilt(cond.sos, np.concatenate([q[cs:ce], effort[cs:ce]], axis=1), axis=0,
+                        zi=zi)  # fmt: skip
+        full = np.concatenate([prev, y], axis=0)
+        prev = full[-2:]
+        y0, y1, y2 = full[2:], full[1:-1], full[:-2]
+        qd = (y0[:, :n] - y2[:, :n]) / (2.0 * dt)
+        qdd = (y0[:, :n] - 2.0 * y1[:, :n] + y2[:, :n]) / (dt * dt)
+        tau = 0.5 * (y0[:, n:] + y1[:, n:]) if cond.period_mean else y1[:, n:]
+        if cond.gain is not None:
+            tau = tau * cond.gain
+        slow = (
+            np.abs(qd) < cond.threshold if cond.threshold is not None else np.zeros_like(qd, bool)
+        )
+        a = max(cs, s + 1)
+        flat = q[a:ce] == q[a - 1 : ce - 1]  # no count in the period: both rows flagged
+        flags[a:ce] |= flat
+        flags[a - 1 : ce - 1] |= flat
+        k = np.arange(cs, ce)
+        j = k - lag
+        warm = j < s + warmup
+        mark = slow if tk.per_joint else np.repeat(slow.any(axis=1, keepdims=True), n, 1)
+        ok = j >= 0
+        flags[j[ok & ~warm]] |= mark[ok & ~warm]
+        flags[j[ok & warm]] = True
+        released = k + g <= e - 1  # the guard's pending rows at a gap or the end are dropped
+        released &= j >= 0  # a sample before the first row is in the warm-up: never used
+        r = np.flatnonzero(released)
+        pending.append((k[r], y1[r, :n], qd[r], qdd[r], tau[r]))
+        # flags up to row ce - lag - 2 are final (later rows flag their sample k - lag and
+        # no-count pairs from ce - 1 on); the segment's are final at its end (a later
+        # segment only flags its own warm-up)
+        pending = _release(tk, flags, pending, ce - g - 2 if ce < e else e, keep)
+
+
+def _release(tk, flags, pending, last_k, keep) -> list:
+    """Append the pending rows k <= ``last_k`` that some joint uses to ``keep`` with their
+    bad joints (any flag within the guard of the sample j = k - lag, j - g .. j + g); the
+    rest stay pending (returned)."""
+    lag, g, n = tk._lag, tk.guard, flags.shape[1]
+    kk, qf, qd, qdd, tau = (np.concatenate(f) for f in zip(*pending, strict=True))
+    now = kk <= last_k
+    later = [tuple(f[~now] for f in (kk, qf, qd, qdd, tau))]
+    kk, qf, qd, qdd, tau = (f[now] for f in (kk, qf, qd, qdd, tau))
+    if not len(kk):
+        return later
+    jj = kk - lag
+    lo = int(jj[0]) - g
+    window = flags[max(lo, 0) : int(jj[-1]) + g + 1]
+    if lo < 0:
+        window = np.concatenate([np.zeros((-lo, n), bool), window])
+    csum = np.concatenate([np.zeros((1, n), np.int64), np.cumsum(window, axis=0)])
+    bad = (csum[jj + g + 1 - lo] - csum[jj - g - lo]) > 0
+    if not tk.per_joint:
+        bad[:] = bad.any(axis=1, keepdims=True)
+    use = ~bad.all(axis=1)
+    for part, x in zip(keep, (kk[use], bad[use], qf[use], qd[use], qdd[use], tau[use]),
+                       strict=True):  # fmt: skip
+        part.append(x)
+    return later
+
+
+def _joined(parts: list) -> np.ndarray:
+    """The segments' pieces of one field in one array, each piece released as soon as it is
+    copied (one field's copy at a time; none for a single segment)."""
+    if len(parts) == 1:
+        return parts.pop()
+    out = np.concatenate(parts)
+    parts.clear()
+    return out
 
 
 def _equations(tk, q, qd, qdd, tau):
