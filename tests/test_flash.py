@@ -42,9 +42,11 @@ def _rows(path) -> list[str]:
 
 
 def _same_telemetry(pty_rows: list[str], sim_rows: list[str]) -> None:
-    """Row for row: tick, time, setpoints and status equal; the motion within a few encoder
-    counts of firmware=avr's. Over a pty the host's bytes reach the simulated UART at a point
-    of the tick that depends on the wall clock (and on the machine's load), and its interrupts
+    """Row for row: ticks (from the first), time, setpoints and status equal; the motion
+    within a few encoder counts of firmware=avr's. Over a pty the host's bytes reach the
+    simulated UART at a point of the tick that depends on the wall clock (and on the
+    machine's load; the firmware's tick counts from its boot, in wall-clock time), and its
+    interrupts
     move an ADC conversion (of ~36 per channel and tick) across a tick's edge now and then: a
     tick's voltage and current means move by a fraction of a conversion's step, and the PID
     (fed those currents only through the motor) may then differ by a count in a few rows
@@ -52,7 +54,7 @@ def _same_telemetry(pty_rows: list[str], sim_rows: list[str]) -> None:
     (tests/test_firmware_avr_boot.py)."""
     assert len(pty_rows) == len(sim_rows) and pty_rows[0] == sim_rows[0]
     head = pty_rows[0].split(",")
-    exact = [k for k, n in enumerate(head) if n in ("tick", "time_s", "status")
+    exact = [k for k, n in enumerate(head) if n in ("time_s", "status")
              or n.startswith("setpoint")]  # fmt: skip
     counts = [k for k, n in enumerate(head) if n.startswith("counts_")]
     sensors = [k for k, n in enumerate(head) if n.startswith(("v_", "i_"))]
@@ -60,6 +62,9 @@ def _same_telemetry(pty_rows: list[str], sim_rows: list[str]) -> None:
     a = [r.split(",") for r in pty_rows[1:]]
     b = [r.split(",") for r in sim_rows[1:]]
     assert [[r[k] for k in exact] for r in a] == [[r[k] for k in exact] for r in b]
+    tick = head.index("tick")  # the firmware's own count: from when it booted (wall clock)
+    ta, tb = (np.array([int(r[tick]) for r in x]) for x in (a, b))
+    assert np.array_equal(ta - ta[0], tb - tb[0])
     ca = np.array([[float(r[k]) for k in counts] for r in a])
     cb = np.array([[float(r[k]) for k in counts] for r in b])
     assert np.abs(ca - cb).max() <= 3, np.abs(ca - cb).max(axis=0)

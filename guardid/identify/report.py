@@ -157,12 +157,17 @@ def robot_mapping(description) -> dict | None:
         return None
 
 
+SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+"""libyaml's safe loader when PyYAML has it (its wheels do): the same documents as
+``yaml.safe_load``, about 10x faster on a params file of long lists."""
+
+
 def read_yaml(path):
     """A YAML file's content; one-line errors naming the file (unreadable, not UTF-8 text,
     invalid YAML)."""
     try:
         with open(path, encoding="utf-8") as f:
-            return yaml.safe_load(f)
+            return yaml.load(f, Loader=SAFE_LOADER)
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read: {exc.strerror}") from None
     except UnicodeDecodeError as exc:
