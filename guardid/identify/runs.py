@@ -77,13 +77,11 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
         raise LogFormatError(
             f"{path}: no counts_* columns (expected counts_*, q_* and i_* columns for every joint)"
         )
-    # by name, in the order of the counts_* columns; each group's columns freed once copied
-    q = data.take_joint_array("q", joints)
-    current = data.take_joint_array("i", joints)
-    setpoint = data.take_joint_array("sp", joints) if data.has_group("sp") else None
-    voltage = data.take_joint_array("v", joints) if data.has_group("v") else None  # optional
-    counts = data.take_joint_array("counts", joints)
-    data.columns.clear()  # time_s, status: not used
+    q = data.joint_array("q", joints)  # by name, in the order of the counts_* columns
+    current = data.joint_array("i", joints)
+    setpoint = data.joint_array("sp", joints) if data.has_group("sp") else None
+    voltage = data.joint_array("v", joints) if data.has_group("v") else None  # optional
+    counts = data.joint_array("counts", joints)
     return Run(
         path=str(path),
         robot=data.header.get("robot_source") or data.header.get("robot"),

@@ -73,16 +73,6 @@ class LogData:
             return np.empty((len(self.columns.get("tick", ())), 0))
         return np.column_stack([self.columns[c] for c in names])
 
-    def take_joint_array(self, key: str, joints=None) -> np.ndarray:
-        """:meth:`joint_array`, its columns then removed from :attr:`columns` (their memory
-        freed unless held elsewhere): a caller copying the groups one by one holds one
-        group twice at most, not the whole log."""
-        joints = self.joint_names if joints is None else list(joints)
-        out = self.joint_array(key, joints)
-        for j in joints:
-            self.columns.pop(per_joint_column(key, j), None)
-        return out
-
     def check_joint_columns(self) -> None:
         """Every per-joint column must name one of the joints of the ``counts_*`` columns
         (a :class:`LogFormatError` naming the first that does not)."""
@@ -113,12 +103,11 @@ def read_log(path) -> LogData:
 
 
 class _Rows:
-    """A growing float64 store, one array per column (so that a caller can free a column
-    it has used while it still reads the others), sized from the first block's bytes per
-    row and the file's size; ``line_of(row)`` gives a row's line number."""
+    """A growing (ncols, capacity) float64 store, sized from the first block's bytes per row
+    and the file's size; ``line_of(row)`` gives a row's line number."""
 
     def __init__(self, ncols: int, file_bytes: int) -> None:
-        self.data = [np.empty(0) for _ in range(ncols)]
+        self.data = np.empty((ncols, 0))
         self.n = 0
         self.file_bytes = file_bytes
         self._segments: list[tuple[int, int | np.ndarray]] = []  # (first row, line(s))
@@ -127,17 +116,15 @@ class _Rows:
         """Append ``rows`` (m, ncols) parsed from ``nbytes`` of text; ``lines``: the first
         row's line number when the rows are consecutive lines, else each row's."""
         m = len(rows)
-        capacity = self.data[0].size if self.data else 0
-        if self.n + m > capacity:
+        if self.n + m > self.data.shape[1]:
             if self.n == 0:  # rows in the file, from this block's bytes per row, +2 %
                 want = int(m * self.file_bytes / max(nbytes, 1) * 1.02) + 16
             else:
-                want = capacity * 5 // 4
-            for c, old in enumerate(self.data):
-                self.data[c] = np.empty(max(self.n + m, want))
-                self.data[c][: self.n] = old[: self.n]
-        for c, column in enumerate(self.data):
-            column[self.n : self.n + m] = rows[:, c]
+                want = self.data.shape[1] * 5 // 4
+            grown = np.empty((self.data.shape[0], max(self.n + m, want)))
+            grown[:, : self.n] = self.data[:, : self.n]
+            self.data = grown
+        self.data[:, self.n : self.n + m] = rows.T
         self._segments.append((self.n, lines))
         self.n += m
 
@@ -183,7 +170,7 @@ class _Reader:
         store = _Rows(len(names), path.stat().st_size)
         foot = self._body(names, pending, store)
         footer = _yaml(path, foot, "footer").get("footer") if foot is not None else None
-        columns = {name: store.data[c][: store.n] for c, name in enumerate(names)}
+        columns = {name: store.data[c, : store.n] for c, name in enumerate(names)}
         if "tick" in columns:
             columns["tick"] = self._ticks(columns["tick"], store)
         self._check_footer(footer, store.n)
