@@ -10,6 +10,7 @@ counted here with str.split.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -250,3 +251,29 @@ def test_the_consistent_fit_of_the_python_api_reads_by_name_too(capture, tmp_pat
         intact_fit = identify_consistent([load_run(str(capture))], guard, options)[0]
     got, want = (r.results["consistent"].theta for r in (swapped_fit, intact_fit))
     assert np.allclose(got, want, rtol=1e-9, atol=0)
+
+
+def test_identify_keeps_only_the_columns_it_reads(capture):
+    """The columns load_run copies are the file's (an independent parse with numpy), and
+    identify drops counts once the joints are in the robot's order (kept when they must be
+    reordered and checked) and setpoints unless iv, didim or --report read them."""
+    from dataclasses import replace
+
+    from guardid.commands.identify import _lean
+
+    path = capture
+    text = [ln for ln in Path(path).read_text().splitlines()[1:] if not ln.startswith("#")]
+    names = Path(path).read_text().splitlines()[0].split(",")
+    raw = np.loadtxt(text, delimiter=",")
+    run = load_run(path)
+    for key, group in (("q", "q_{}_rad"), ("current", "i_{}_A"), ("setpoint", "sp_{}_rad"),
+                       ("counts", "counts_{}")):  # fmt: skip
+        want = raw[:, [names.index(group.format(j)) for j in run.joint_names]]
+        assert np.array_equal(getattr(run, key), want), key
+    guard = load_robot(shipped_path("guard"))
+    lean = _lean(run, guard, ("ls", "wls", "rls", "hopfield"), None)
+    assert lean.counts is None and lean.setpoint is None and lean.q is run.q
+    assert _lean(run, guard, ("ls", "iv"), None).setpoint is run.setpoint
+    assert _lean(run, guard, ("ls",), "report.html").setpoint is run.setpoint
+    other = replace(run, joint_names=run.joint_names[::-1])
+    assert _lean(other, guard, ("ls",), None).counts is run.counts

@@ -297,3 +297,18 @@ def test_foreign_csv_reads_the_same_on_both_paths(tmp_path):
     for got in (a, b):
         assert np.array_equal(got.q, want[:, 1:3]) and np.array_equal(got.effort, want[:, 3:5])
         assert np.array_equal(got.t, want[:, 0] - want[0, 0])
+
+
+_NOT_PLAIN = [b"1, 2\n", b"1,+2\n", b"1,2\r\n", b"1,\t2\n", b"1,0x2\n", b"1,2e3\n", b"1,\xff\n",
+              b"1,2\x00\n", b"1,1.2.3\n", b"1+2\n", b"1 2\n"]  # fmt: skip
+
+
+@pytest.mark.parametrize("block", _NOT_PLAIN)
+def test_fast_parser_leaves_anything_but_plain_decimals_to_the_checked_path(block):
+    """The compiled fast path reads only digits, one '-', one '.', ',' and '\\n': a space,
+    a '+', a CR, a tab (which an integer parser would skip or accept) and other bytes go to
+    the checked path, which reads or names them."""
+    from guardid.log.numeric import parse_plain
+
+    assert parse_plain(block, 2) is None
+    assert parse_plain(b"1,-2.50\n", 2).tolist() == [[1.0, -2.5]]

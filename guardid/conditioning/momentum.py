@@ -511,8 +511,9 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
     A = A * jm[:, :, None] / dt
     y = y * jm / dt
     mask = np.any(jm, axis=1)
-    qdd = np.zeros_like(v)
-    qdd[1:-1] = (v[2:] - v[:-2]) / (2.0 * dt)
+    qdd = np.zeros((len(rows), n_j))  # central difference of v, at the kept rows only
+    inner = (rows > 0) & (rows < len(t) - 1)
+    qdd[inner] = (v[rows[inner] + 1] - v[rows[inner] - 1]) / (2.0 * dt)
     state = MomentumState(q, v, dt, valid, sos, skip, rows, jm, kink,
                           points if velocity is None else 5)  # fmt: skip
     share = 100.0 * valid.sum(0) / max(len(t), 1)
@@ -541,7 +542,7 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
         "in the filter's start after a cut": int(round(transient / k)),
     }
     cond = Conditioned(
-        t[rows], q[rows], v[rows], qdd[rows], y, mask, np.any(bad[rows], axis=1),
+        t[rows], q[rows], v[rows], qdd, y, mask, np.any(bad[rows], axis=1),
         np.asarray(thr, dtype=float), float(cutoff_hz), k,
         "N m" if gain is not None else "effort", notes, None, int(np.any(bad, axis=1).sum()),
         dropped, joint_mask=jm, equation="momentum", momentum=state,

@@ -53,7 +53,8 @@ def check_log_robot(run, description, robot_from: str):
         if name not in logged:
             raise ConfigError(f"{run.path}: no column counts_{name}: {robot} include {name}")
     order = [logged.index(name) for name in joints]
-    for key in ("q", "current", "voltage", "setpoint", "counts", "qd"):
+    reordered = order != list(range(len(order)))  # in the file's order already: no copies
+    for key in ("q", "current", "voltage", "setpoint", "counts", "qd") if reordered else ():
         value = getattr(run, key, None)
         if value is not None and np.ndim(value) == 2:
             setattr(run, key, np.asarray(value)[:, order])

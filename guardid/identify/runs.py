@@ -64,7 +64,7 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
                 "columns with --columns)"
             )
     _check_samples(path, data, data.columns["tick"])
-    ticks = data.columns["tick"].astype(np.int64)
+    ticks = data.columns["tick"].astype(np.int64, copy=False)  # int64 already: no copy
     if len(ticks) < 10:
         raise LogFormatError(f"{path}: only {len(ticks)} rows")
     period = _sample_period(path, data.header, sample_period_s)
@@ -81,6 +81,7 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
     current = data.joint_array("i", joints)
     setpoint = data.joint_array("sp", joints) if data.has_group("sp") else None
     voltage = data.joint_array("v", joints) if data.has_group("v") else None  # optional
+    counts = data.joint_array("counts", joints)
     return Run(
         path=str(path),
         robot=data.header.get("robot_source") or data.header.get("robot"),
@@ -94,7 +95,7 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
         robot_name=data.header.get("robot"),
         joint_names=tuple(joints),
         setpoint=setpoint,
-        counts=data.joint_array("counts", joints),
+        counts=counts,
     )
 
 
