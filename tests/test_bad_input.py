@@ -168,6 +168,7 @@ ROWS = [
     ("identify-robot-named-other", "identify {run} --robot {guard_b.yaml}", 2, ["run.csv", "guard_b"]),
     ("identify-logs-of-two-robots", "identify {run} {other.csv}", 2, ["other.csv", "guard_b", "guard"]),
     ("identify-same-log-twice", "identify {run} {run}", 2, ["run.csv", "twice"]),
+    ("identify-method-twice", "identify {run} --method ls,wls,ls", 2, ["--method", "ls", "twice"]),
     ("identify-copy-of-a-log", "identify {run} {copy.csv}", 2, ["copy.csv", "run.csv", "same samples"]),
     ("validate-other-robots-params", "validate {run} --params {params_b.yaml}", 2, ["params_b.yaml", "guard_b"]),
     ("validate-robot-planar2", "validate {run} --params {params} --robot planar2", 2, ["run.csv", "planar2"]),

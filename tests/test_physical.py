@@ -145,6 +145,9 @@ def test_cli_identify_consistent_then_export(tmp_path):
     res = CliRunner().invoke(main, [*args, "-o", str(params)])
     assert res.exit_code == 0, res.output
     assert "CONSISTENT" in res.output and "every link physically consistent" in res.output
+    # the summary line gives each figure a method has, no "nan" for the consistent fit's
+    (summary,) = [x for x in res.output.splitlines() if x.startswith("rows ")]
+    assert "nan" not in summary.lower() and "stacked error LS " in summary
     data = yaml.safe_load(params.read_text())
     model = build_model(load_robot("dfki_double_pendulum"))
     std = data["consistent"]["standard_parameters"]

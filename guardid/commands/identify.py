@@ -244,6 +244,9 @@ def identify(
     methods = tuple(m.strip() for m in method.split(",") if m.strip())
     if not methods:
         raise ConfigError(f"--method {method!r}: no method named (e.g. --method ls,wls)")
+    twice = sorted({m for m in methods if methods.count(m) > 1})
+    if twice:
+        raise ConfigError(f"--method {method!r}: {', '.join(twice)} named twice")
     status = Status()
     status.stage("reading")
     logs, (runs, description) = log, _load_all(log, robot, foreign)

@@ -81,8 +81,8 @@ def table(result, methods, description=None) -> str:
     unit = "N m" if result.torque_unit == "N m" else "A (current units)"
     if description is not None:
         unit = effort_units(result, description)
-    fit = ", ".join(f"{m.upper()} {100 * result.results[m].d_tau:.2f} %" for m in methods)
-    stacked = ", ".join(f"{m.upper()} {100 * result.results[m].d_stacked:.2f} %" for m in methods)
+    fit = _percents(result, methods, "d_tau")
+    stacked = _percents(result, methods, "d_stacked")
     lines.append(
         f"rows {result.rows}, cut-off {result.cutoff_hz:.3g} Hz, cond(A) {result.cond:.4g}, "
         f"effort in {unit}; d_tau {fit}; stacked error {stacked}"
@@ -160,6 +160,13 @@ def robot_mapping(description) -> dict | None:
 SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 """libyaml's safe loader when PyYAML has it (its wheels do): the same documents as
 ``yaml.safe_load``, about 10x faster on a params file of long lists."""
+
+
+def _percents(result, methods, field: str) -> str:
+    """``LS 0.85 %, WLS 0.85 %``: a method without the figure (NaN, e.g. the consistent fit,
+    scored elsewhere) is left out rather than printed as nan."""
+    values = ((m, 100 * getattr(result.results[m], field)) for m in methods)
+    return ", ".join(f"{m.upper()} {v:.2f} %" for m, v in values if math.isfinite(v)) or "-"
 
 
 def read_yaml(path):
