@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import click
 
+from guardid.commands._types import POSITIVE
+
 
 @click.command()
 @click.option("--port", required=True, help="The board's serial device, e.g. /dev/ttyACM0.")
@@ -21,7 +23,7 @@ import click
 @click.option("--avrdude", default="avrdude", show_default=True, help="The avrdude program to run.")
 @click.option(
     "--timeout",
-    type=click.FloatRange(min=0, min_open=True),
+    type=POSITIVE,
     default=1.0,
     show_default=True,
     help="Longest wait for an answer from the new firmware [s] (after its boot loader).",
