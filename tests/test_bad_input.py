@@ -161,6 +161,8 @@ ROWS = [
     ("yaml-syntax", "excite --robot {broken.yaml} -o {x.yaml}", 2, ["broken.yaml", "line"]),
     ("yaml-mistyped-field", "excite --robot {typo.yaml} -o {x.yaml}", 2, ["typo.yaml", "gear_ratio"]),
     ("yaml-missing-file", "excite --robot {nowhere.yaml} -o {x.yaml}", 2, ["nowhere.yaml"]),
+    ("excite-base-freq-nan", "excite --base-freq nan -o {x.yaml}", 2, ["--base-freq", "nan"]),
+    ("excite-base-freq-inf", "excite --base-freq inf -o {x.yaml}", 2, ["--base-freq", "inf"]),
     ("identify-garbage-robot", "identify {run} --robot {garbage.yaml}", 2, ["garbage.yaml"]),
     # a log and a robot that do not belong together
     ("identify-robot-planar2", "identify {run} --robot planar2", 2, ["run.csv", "guard", "planar2"]),

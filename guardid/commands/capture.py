@@ -83,7 +83,7 @@ def _load_trajectory(path: str):
 @click.option(
     "--until-std",
     "until_std",
-    type=click.FloatRange(min=0, min_open=True),
+    type=POSITIVE,
     default=None,
     help="Keep the robot on its excitation until every base parameter is identified to this "
     "relative standard deviation [%] (live least squares on the causal conditioning; a "

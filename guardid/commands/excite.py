@@ -15,6 +15,7 @@ import click
 import numpy as np
 
 from guardid.commands._status import Status
+from guardid.commands._types import POSITIVE
 from guardid.commands.outputs import force_option, output_option
 from guardid.conditioning.bandwidth import MAX_NYQUIST_FRACTION
 from guardid.excitation import (
@@ -53,7 +54,7 @@ SAMPLES = 300  # cond grid: samples per period
 )
 @click.option(
     "--base-freq",
-    type=click.FloatRange(min=0, min_open=True),
+    type=POSITIVE,
     default=0.1,
     show_default=True,
     help="base frequency f [Hz]; the period is 1/f",
