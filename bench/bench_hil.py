@@ -5,6 +5,13 @@ guard plant -> sensors -> telemetry -> parser, for a closed-loop run of sums of 
 Prints the median over runs (and the worst) by wall clock, and by CPU time, which a busy
 machine disturbs less. Run: python bench/bench_hil.py [robot seconds per run, default 60]
 [runs, default 5]
+
+``--vs-plant`` (``python bench/bench_hil.py --vs-plant [seconds] [runs]``): the plant alone
+against the whole stack, by CPU time, in interleaved pairs (the order alternating): the plant
+of the same ``sim://`` port (same seed) stepped with the very voltages the stack's firmware
+applied (recorded in a first, untimed run), against the whole stack's run; prints per pair
+the plant's and the stack's CPU per tick [us] and the ratio plant / stack (1 would mean the
+stack costs nothing beyond its plant), then the median and the worst ratio.
 """
 
 from __future__ import annotations
@@ -17,8 +24,14 @@ import time
 
 import numpy as np
 
+from guardid.fakeport import register_device_factory
+from guardid.fakeport.options import parse_sim_url
+from guardid.firmware import make_sim_device
 from guardid.link import Session, open_port
+from guardid.plant import make_plant
 from guardid.robot import load_robot
+
+URL = "sim://guard?seed=1"
 
 
 def sines_setpoints(robot_seconds: float) -> np.ndarray:
@@ -35,7 +48,7 @@ def sines_setpoints(robot_seconds: float) -> np.ndarray:
 
 def one_run(rows) -> tuple[float, float, int, int]:
     """(wall s, CPU s, telemetry frames, link errors) of one lock-step run over ``rows``."""
-    port = open_port("sim://guard?seed=1")
+    port = open_port(URL)
     session = Session(port)
     start, cpu = time.perf_counter(), time.process_time()
     session.handshake()
@@ -46,6 +59,64 @@ def one_run(rows) -> tuple[float, float, int, int]:
     wall, cpu = time.perf_counter() - start, time.process_time() - cpu
     port.close()
     return wall, cpu, frames, session.stats.errors
+
+
+def applied_voltages(rows) -> list:
+    """The voltages [V] the firmware applies to its plant at every tick of a run of
+    ``rows`` (a run of the stack, untimed, with the plant's input recorded)."""
+    volts = []
+
+    def factory(robot, options):
+        device = make_sim_device(robot, options)
+        read_plant = device._read_plant
+
+        def recorded(u):
+            volts.append(list(u))
+            return read_plant(u)
+
+        device._read_plant = recorded
+        return device
+
+    old = register_device_factory(factory)
+    try:
+        one_run(rows)
+    finally:
+        register_device_factory(old)
+    return volts
+
+
+def plant_alone(volts) -> float:
+    """CPU seconds of the port's plant stepped through ``volts`` (as the firmware reads it)."""
+    options = parse_sim_url(URL)
+    plant = make_plant(load_robot(options.robot), options)
+    step = getattr(plant, "step_sensors", None) or plant.step
+    cpu = time.process_time()
+    for u in volts:
+        step(u)
+    return time.process_time() - cpu
+
+
+def vs_plant(robot_seconds: float = 60.0, runs: int = 5) -> None:
+    """Plant alone against the whole stack, CPU per tick, ``runs`` interleaved pairs."""
+    rows = sines_setpoints(robot_seconds)
+    volts = applied_voltages(rows)
+    n = len(volts)  # plant steps, the same in both
+    ratios = []
+    print(f"{robot_seconds:g} s of robot time ({n} ticks) per run, {URL}, CPU time")
+    for k in range(runs):
+        if k % 2:
+            stack = one_run(rows)[1]
+            plant = plant_alone(volts)
+        else:
+            plant = plant_alone(volts)
+            stack = one_run(rows)[1]
+        ratios.append(plant / stack)
+        print(f"pair {k + 1}: plant alone {plant / n * 1e6:.1f} us/tick, whole stack "
+              f"{stack / n * 1e6:.1f} us/tick (adds {(stack - plant) / n * 1e6:.1f}), "
+              f"ratio {plant / stack:.2f}")  # fmt: skip
+    print(f"ratio plant alone / whole stack (CPU): median {statistics.median(ratios):.2f}, "
+          f"worst {min(ratios):.2f} over {runs} pairs (target >= 0.7); load average "
+          f"{os.getloadavg()[0]:.1f}")  # fmt: skip
 
 
 def main(robot_seconds: float = 60.0, runs: int = 5) -> None:
@@ -66,7 +137,7 @@ def main(robot_seconds: float = 60.0, runs: int = 5) -> None:
 
 
 if __name__ == "__main__":
-    main(
-        float(sys.argv[1]) if len(sys.argv) > 1 else 60.0,
-        int(sys.argv[2]) if len(sys.argv) > 2 else 5,
+    args = [a for a in sys.argv[1:] if a != "--vs-plant"]
+    (vs_plant if "--vs-plant" in sys.argv else main)(
+        float(args[0]) if args else 60.0, int(args[1]) if len(args) > 1 else 5
     )
