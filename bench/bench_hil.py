@@ -53,7 +53,7 @@ def one_run(rows) -> tuple[float, float, int, int]:
     start, cpu = time.perf_counter(), time.process_time()
     session.handshake()
     frames = 0
-    for index, _ in session.track(rows):
+    for index, _ in session.track(rows, run_ahead=True):
         frames += index >= 0
     session.finish()
     wall, cpu = time.perf_counter() - start, time.process_time() - cpu

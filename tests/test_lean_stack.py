@@ -178,15 +178,36 @@ class PlainRecorder(OneCallRecorder):
     read_some = None
 
 
-def _recorded_run(url: str, recorder, ticks: int = 600):
+class AheadRecorder(OneCallRecorder):
+    """The one-call recorder passing run-ahead on (``Session.track(run_ahead=True)``),
+    counting its reads."""
+
+    reads_ahead = True
+
+    def read_some(self, ahead_ticks: int = 0) -> bytes:
+        self.reads = getattr(self, "reads", 0) + 1
+        data = self._port.read_some(ahead_ticks)
+        self.received += data
+        return data
+
+
+def _recorded_run(url: str, recorder, ticks: int = 600, watchdog_s=None, feedforward=False):
     """(host-read bytes, host-written bytes, fault stats) of a closed-loop run."""
     port = recorder(open_port(url))
     try:
         session = Session(port)
         session.handshake()
+        if watchdog_s is not None:
+            session.set_watchdog(watchdog_s)
         t = np.arange(ticks) * 0.015
         rows = np.column_stack([900 * np.sin(1.3 * t), 400 * np.sin(2.1 * t) + 300])
-        assert sum(i >= 0 for i, _ in session.track(rows.astype(int))) == ticks
+        if feedforward:  # + feedforward [mV] per joint
+            rows = np.column_stack([rows, 800 * np.cos(1.3 * t), 300 * np.cos(2.1 * t)])
+        run_ahead = recorder is AheadRecorder
+        track = session.track(rows.astype(int), feedforward=feedforward, run_ahead=run_ahead)
+        assert sum(i >= 0 for i, _ in track) == ticks
+        if run_ahead:  # the path under test: several ticks per read
+            assert port.reads < ticks / 2
         session.finish()
         assert port.engine.clean == ("disconnect_s" not in url)  # the path under test
         return bytes(port.received), bytes(port.sent), port.fault_stats
@@ -266,3 +287,24 @@ def test_fused_free_acceleration_is_dyn_solved_for_qdd():
         mm = model.mass_matrix(q, params)[0] - np.diag([ia1, ia2])
         rhs = np.array([e1 - c1 * v1, e2 - c2 * v2]) - model.bias(q, qd, params)[0]
         assert np.allclose(got, np.linalg.solve(mm, rhs), rtol=1e-7, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("query", "watchdog_s", "feedforward"),
+    [("seed=3", None, False), ("seed=8&phase=1&noise=0", 0.06, False), ("seed=4", None, True)],
+)
+def test_run_ahead_gives_the_bytes_of_one_tick_at_a_time(query, watchdog_s, feedforward):
+    """Run-ahead (several ticks per read, the setpoints of a read's frames in one write)
+    against the reference path (general event loop, plain reads, Plant.step): the same
+    bytes in both directions, hence no setpoint late or missing (an underrun bit, a NAK),
+    no tick run beyond the last row's before the host's SET_MODE idle (an extra
+    TELEMETRY), no watchdog trip but where one tick at a time trips it, at the same tick:
+    a 60 ms watchdog (2 ticks ahead) trips in the last row's ticks, where the host has no
+    setpoint left to send (a FAULT frame)."""
+    url = f"sim://guard?{query}"
+    got, sent, _ = _recorded_run(url, AheadRecorder, 400, watchdog_s, feedforward)
+    with reference_device():
+        ref = _recorded_run(url + "&disconnect_s=1000", PlainRecorder, 400, watchdog_s, feedforward)
+    assert got == ref[0] and sent == ref[1]
+    names = [type(P.decode(seg).msg).__name__ for seg in got.split(b"\x00")[:-1]]
+    assert "Nak" not in names and names.count("Fault") == (watchdog_s is not None)

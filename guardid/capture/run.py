@@ -167,7 +167,10 @@ def capture(
         _configure(session, description)
         while legs.rows is not None:
             try:
-                for index, t in session.track(legs.rows, feedforward=feedforward is not None):
+                # run-ahead unless a row's answer (--until-std) may end the run at its tick
+                track = session.track(legs.rows, feedforward=feedforward is not None,
+                                      run_ahead=until is None)  # fmt: skip
+                for index, t in track:
                     legs.last_tick = t.tick
                     index += legs.resume_at - legs.lead  # the trajectory's row
                     if not legs.resume_at <= index < n_ticks:

@@ -123,7 +123,11 @@ class _StopAwareSomeReader(StopAwarePort):
     """:class:`StopAwarePort` over a port with ``read_some`` (``sim://``): the same check
     before a read that would wait."""
 
-    def read_some(self) -> bytes:
+    reads_ahead = True  #: passed on to the port when it reads ahead (else plain reads)
+
+    def read_some(self, ahead_ticks: int = 0) -> bytes:
         if self._stop and self._stop.armed and not self._port.in_waiting:
             self._stop.check()
+        if ahead_ticks and getattr(type(self._port), "reads_ahead", False):
+            return self._port.read_some(ahead_ticks)
         return self._port.read_some()

@@ -20,6 +20,10 @@ class Device(Protocol):
     """
 
     tick_period_s: float  # [s] simulated time per advance(), e.g. 0.015
+    # optional ``runs_ahead = True``: host frames are handled between ticks, by their
+    # order alone (not by the tick they come at, but for the watchdog and late setpoints,
+    # which the host guards): a lock-step read may run the device several ticks ahead
+    # (``read_some(ahead_ticks)``); a device timing its UART by clock cycles must not
 
     def receive(self, data: bytes) -> None:
         """Accept bytes from the host; responses may be queued for take_output()."""

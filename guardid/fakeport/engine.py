@@ -166,6 +166,25 @@ class LinkEngine:
                 rx += out
         return True
 
+    def run_ticks(self, ticks: int, deadline_ns: int) -> None:
+        """On a :attr:`clean` link: run ``ticks`` more device ticks (none due after
+        ``deadline_ns``), their output delivered to the host (lock-step run-ahead)."""
+        tick_ns, advance = self.tick_ns, self.device.advance
+        for _ in range(ticks):
+            t = (self.ticks + 1) * tick_ns
+            if t > deadline_ns:
+                break
+            if t > self.now_ns:
+                self.now_ns = t
+            self.ticks += 1
+            advance()
+        out = self.device.take_output()  # the ticks' bytes, in order, in one piece
+        if out:
+            down, n = self.stats.down, len(out)
+            down.bytes_in += n
+            down.bytes_out += n
+            self.rx += out
+
     def host_write(self, data: bytes) -> None:
         """Bytes from the host reach the device now; its responses enter the link."""
         if self.disconnected:

@@ -24,6 +24,8 @@ MAX_BLOCK_S = 600.0
 class Serial(SerialBase):
     """A serial port whose other end is an emulated device."""
 
+    reads_ahead = True  #: read_some takes ahead_ticks (lock-step run-ahead)
+
     def __init__(self, *args, **kwargs) -> None:
         self.engine: LinkEngine | None = None
         self.options: SimOptions | None = None
@@ -32,6 +34,7 @@ class Serial(SerialBase):
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._t0 = 0.0
+        self._runs_ahead = False
         super().__init__(*args, **kwargs)
 
     # -- opening and closing ------------------------------------------------------
@@ -45,6 +48,8 @@ class Serial(SerialBase):
         device = make_device(self.options.robot, self.options)
         name = self.portstr.split("?", 1)[0]
         self.engine = LinkEngine(device, self.options.faults, self.options.seed, name)
+        # read_some(ahead_ticks): lock-step, and a device that may run ahead
+        self._runs_ahead = self.options.lockstep and getattr(device, "runs_ahead", False)
         self._dtr_was = self._dtr_state
         self.is_open = True
         self._stop.clear()
@@ -122,9 +127,16 @@ class Serial(SerialBase):
                 raise Disconnected(f"{self.engine.name}: port disconnected")
             return data
 
-    def read_some(self) -> bytes:
+    def read_some(self, ahead_ticks: int = 0) -> bytes:
         """What ``read(1)`` waits for, then every byte delivered so far: one call where a
-        host would ask ``in_waiting``, ``read(1)`` and ``read(in_waiting)``."""
+        host would ask ``in_waiting``, ``read(1)`` and ``read(in_waiting)``.
+
+        ``ahead_ticks`` (lock-step, a link without faults and a device that ``runs_ahead``
+        only; ignored otherwise): once
+        bytes arrived, the device runs that many ticks more (within the read's timeout)
+        before the read returns, their bytes included: a host whose next bytes do not
+        depend on what those ticks send (setpoints streamed ahead) takes several ticks'
+        telemetry in one call."""
         self._check_open()
         with self._lock:  # the condition's lock (waits happen in _fill_realtime only)
             engine = self.engine
@@ -133,6 +145,9 @@ class Serial(SerialBase):
                     self._fill_lockstep(1)
                 else:
                     self._fill_realtime(1)
+            if ahead_ticks > 0 and engine.rx and engine.clean and self._runs_ahead:
+                limit = MAX_BLOCK_S if self._timeout is None else self._timeout
+                engine.run_ticks(ahead_ticks, engine.now_ns + round(limit * 1e9))
             data = engine.take()
             if not data and engine.disconnected:
                 raise Disconnected(f"{engine.name}: port disconnected")

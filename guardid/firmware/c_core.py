@@ -150,6 +150,8 @@ class CFirmware:
     emulators' id by default, so both give identical bytes).
     """
 
+    runs_ahead = True  #: host frames handled between ticks (guardid.fakeport.device)
+
     def __init__(self, description, plant, firmware_id: int = FIRMWARE_ID) -> None:
         joints = description.joints
         bind_robot(self, description, plant)

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from functools import cache
 from math import floor
 
 from guardid.errors import ConfigError
@@ -71,6 +72,13 @@ def pwm_mv(mv: int, levels: int, supply_mv: int) -> int:
     duty = (abs(mv) * levels + supply_mv // 2) // supply_mv
     duty_mv = (duty * supply_mv + levels // 2) // levels
     return duty_mv if mv >= 0 else -duty_mv
+
+
+@cache
+def pwm_table(levels: int, supply_mv: int) -> tuple[int, ...]:
+    """:func:`pwm_mv` of every ``mv`` in ``-supply_mv .. supply_mv`` (index ``mv +
+    supply_mv``), made once per process and drive: the per-tick lookup."""
+    return tuple(pwm_mv(mv, levels, supply_mv) for mv in range(-supply_mv, supply_mv + 1))
 
 
 def tick_diff(a: int, b: int) -> int:
@@ -121,6 +129,7 @@ class FirmwareEmulator:
     ``current`` [A] (period means as the ADC reports them).
     """
 
+    runs_ahead = True  #: host frames handled between ticks (guardid.fakeport.device)
     #: INFO protocol_version and capability bits; a subclass may play older firmware
     protocol_version = PROTOCOL_VERSION
     capabilities = (
@@ -139,8 +148,10 @@ class FirmwareEmulator:
         self.pwm_levels = [(1 << j.drive.pwm_bits) - 1 for j in joints]
         self.limits = [self._count_limits(j, c) for j, c in zip(joints, self.cpr, strict=True)]
         self.pids = [FixedPid(s) for s in self.supply_mv]
-        # per joint, for the tick: (count limits or None, PWM levels, supply [mV])
-        self._per_joint = list(zip(self.limits, self.pwm_levels, self.supply_mv, strict=True))
+        # per joint, for the tick: (count limits or None, PWM levels, supply [mV], the PWM
+        # voltage [mV] of every mV in +-supply: pwm_table)
+        drives = zip(self.limits, self.pwm_levels, self.supply_mv, strict=True)
+        self._per_joint = [(lim, lv, s, pwm_table(lv, s)) for lim, lv, s in drives]
         for pid, joint, cpr in zip(self.pids, joints, self.cpr, strict=True):
             if joint.pid is not None:
                 gains = [int(round(g * 1e6)) for g in (joint.pid.kp, joint.pid.ki, joint.pid.kd)]
@@ -381,14 +392,17 @@ class FirmwareEmulator:
         else:
             out = [0] * self.n
         applied = []
-        for j, (lim, levels, supply) in enumerate(self._per_joint):
+        for j, (lim, levels, supply, table) in enumerate(self._per_joint):
             mv = out[j]
             if lim is not None and (
                 (mv > 0 and counts[j] >= lim[1]) or (mv < 0 and counts[j] <= lim[0])
             ):
                 mv = 0
                 status |= LIMIT_BITS[j]
-            applied.append(pwm_mv(mv, levels, supply))
+            if -supply <= mv <= supply:
+                applied.append(table[mv + supply])
+            else:
+                applied.append(pwm_mv(mv, levels, supply))
         self.applied_mv = applied
         if self.watchdog_tripped:
             status |= WATCHDOG_BIT

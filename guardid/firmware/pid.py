@@ -65,18 +65,26 @@ class FixedPid:
         """One tick: the output voltage [mV] (PID plus ``feedforward_mv``), clamped to
         +-limit_mv."""
         error = setpoint - position
-        lim_q = self.limit_mv << Q
+        limit = self.limit_mv
+        lim_q = limit << Q
         integral = self.integral + self.ki * error
-        integral = max(-lim_q, min(lim_q, integral))
+        if integral > lim_q:  # clamped to +-lim_q
+            integral = lim_q
+        elif integral < -lim_q:
+            integral = -lim_q
         raw = (
             self.kp * error + integral + self.kd * (error - self.prev_error) + (feedforward_mv << Q)
         )
         out = raw >> Q if raw >= 0 else -((-raw) >> Q)
-        self.saturated = abs(out) > self.limit_mv
-        if self.saturated:
-            out = self.limit_mv if out > 0 else -self.limit_mv
-        # anti-windup: integrate only while not pushing further into saturation
-        if not (self.saturated and (error > 0) == (out > 0)):
+        # saturated: |out| > limit, then clamped; anti-windup: integrate only while not
+        # pushing further into saturation
+        if out > limit or out < -limit:
+            self.saturated = True
+            out = limit if out > 0 else -limit
+            if (error > 0) != (out > 0):
+                self.integral = integral
+        else:
+            self.saturated = False
             self.integral = integral
         self.prev_error = error
         return out

@@ -11,6 +11,7 @@ from host arrival times (USB adapters deliver frames bunched).
 
 from __future__ import annotations
 
+import math
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
@@ -125,6 +126,8 @@ class Session:
         # sim:// ports: one call per poll (looked up on the class, so that a proxy which
         # wraps read() only is read through read())
         self._read_some = port.read_some if hasattr(type(port), "read_some") else None
+        self._reads_ahead = bool(getattr(type(port), "reads_ahead", False))
+        self._watchdog_s: float | None = None  # the robot's host-silence timeout [s]
         self._setpoint_packers: dict = {}  # (values, feedforward) -> SETPOINT(_FF) packer
         self._lockstep = bool(getattr(getattr(port, "options", None), "lockstep", False))
         self.faults: list = []
@@ -149,10 +152,14 @@ class Session:
         except (serial.SerialException, OSError) as exc:
             raise LinkError(f"port {self.name}: write failed: {exc}") from None
 
-    def poll(self) -> list:
-        """Read what is available (waiting up to the port's timeout); return the frames."""
+    def poll(self, ahead_ticks: int = 0) -> list:
+        """Read what is available (waiting up to the port's timeout); return the frames.
+        ``ahead_ticks``: on a port that reads ahead (lock-step ``sim://``), let the robot
+        run that many ticks more within this read (see :meth:`track`)."""
         try:
-            if self._read_some is not None:
+            if ahead_ticks and self._reads_ahead:
+                data = self._read_some(ahead_ticks)
+            elif self._read_some is not None:
                 data = self._read_some()
             else:
                 waiting = self.port.in_waiting
@@ -234,6 +241,7 @@ class Session:
                 "firmware or guardid"
             )
         self.info = to_si(info)
+        self._watchdog_s = self.info["watchdog_timeout"]
         return self.info
 
     def ping(self) -> int:
@@ -258,6 +266,7 @@ class Session:
     def set_watchdog(self, timeout_s: float) -> None:
         """Host-silence timeout of the moving modes [s]."""
         self.request(M["SET_WATCHDOG"](int(round(timeout_s * 1000))))
+        self._watchdog_s = round(timeout_s * 1000) * 1e-3
 
     def start_stream(self, decimation: int = 1) -> None:
         """Start telemetry, one frame every ``decimation`` ticks."""
@@ -317,6 +326,7 @@ class Session:
         depth: int = 8,
         lead_ticks: int = 3,
         feedforward: bool = False,
+        run_ahead: bool = False,
     ) -> Iterator:
         """Run a closed-loop trajectory: one row of joint setpoints [counts] per tick.
 
@@ -332,6 +342,14 @@ class Session:
         run (made as the run reaches them, never all at once). ``feedforward``: each row is
         the n setpoints [counts] followed by the n feedforward voltages [mV], streamed as
         SETPOINT_FF (only to firmware whose INFO has the feedforward capability).
+
+        ``run_ahead`` (for a caller that sends nothing in reaction to a frame before the
+        run ends): on a lock-step ``sim://`` link without faults the robot runs up to
+        ``depth - 1`` ticks beyond the frame just read in one read (never past the last
+        row's tick, never as long as the watchdog's timeout), and the setpoints for all
+        the frames read go in one write before they are yielded: the same bytes in both
+        directions as one tick at a time, fewer calls per tick. A ``break`` or exception in
+        the caller then comes up to that many ticks late for the robot.
         """
         rows = setpoints_counts
         if not isinstance(rows, LazyRows):
@@ -348,21 +366,55 @@ class Session:
         while sent < min(first + depth - 1, last):
             sent += 1
             write(pack(sent & 0xFFFFFFFF, 0, *rows[sent - first]))
+        # run-ahead: (ticks a read may run beyond its first frame's, host silence the
+        # watchdog allows [ticks]); the host last wrote at tick wrote_at or later
+        limits = self._ahead_limits(depth) if run_ahead else None
+        queue, tick, wrote_at = self.telemetry, None, first - lead_ticks
         while True:
-            t = next_telemetry()
+            if limits and not queue and tick is not None:
+                # the read ends at tick + 1 + n at most (one frame per tick): not past the
+                # setpoints sent, nor the watchdog's silence, nor the tick after which one
+                # tick at a time sends nothing more (the last setpoint goes at that tick
+                # as then: the robot's watchdog, should the end's silence trip it, trips
+                # at the same tick)
+                n = min(limits[0], last - depth - tick - 1, limits[1] - (tick + 1 - wrote_at))
+                if n > 0:
+                    self.poll(n)
+                    if queue:  # the setpoints of every frame read, in one write
+                        top = min(queue[-1].tick + depth, last)
+                        if sent < top:
+                            write(b"".join([pack(k & 0xFFFFFFFF, 0, *rows[k - first])
+                                            for k in range(sent + 1, top + 1)]))  # fmt: skip
+                            sent, wrote_at = top, queue[-1].tick
+            t = queue.popleft() if queue else next_telemetry()
             tick = t.tick
             while sent < last and sent < tick + depth:
                 sent += 1
                 write(pack(sent & 0xFFFFFFFF, 0, *rows[sent - first]))
+                wrote_at = tick
             yield tick - first, t
             if tick >= last:
                 return
+
+    def _ahead_limits(self, depth: int) -> tuple[int, int] | None:
+        """For :meth:`track`'s run-ahead: (ticks a lock-step read may run beyond its first
+        frame's: the setpoints streamed ahead must cover them; ticks the host may stay
+        silent: well within the robot's watchdog timeout), or None when the port cannot
+        read ahead."""
+        if not self._reads_ahead or self.info is None or self._watchdog_s is None:
+            return None
+        tick_s = self.info["tick_period"]
+        if tick_s <= 0:
+            return None
+        watchdog_ticks = math.floor(self._watchdog_s / tick_s + 1e-9)  # trips at this silence
+        return depth - 1, watchdog_ticks - 1
 
     def reattach(self, port) -> None:
         """Go on over ``port`` (the same robot's port opened again after an unplug): bytes
         of a frame cut by the unplug are dropped, counters and sequence numbers go on."""
         self.port = port
         self._read_some = port.read_some if hasattr(type(port), "read_some") else None
+        self._reads_ahead = bool(getattr(type(port), "reads_ahead", False))
         self.parser.feed(b"\x00")  # end a frame cut by the unplug (counted as framing)
         self.telemetry.clear()
 
