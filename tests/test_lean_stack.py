@@ -308,3 +308,28 @@ def test_run_ahead_gives_the_bytes_of_one_tick_at_a_time(query, watchdog_s, feed
     assert got == ref[0] and sent == ref[1]
     names = [type(P.decode(seg).msg).__name__ for seg in got.split(b"\x00")[:-1]]
     assert "Nak" not in names and names.count("Fault") == (watchdog_s is not None)
+
+
+def test_a_capture_ended_by_until_idles_the_robot_at_that_rows_tick(tmp_path):
+    """A row's answer may end a capture (``until``, capture --until-std): then no
+    run-ahead, the robot hears SET_MODE idle at the tick of the row that ended it (with
+    run-ahead it would have run up to depth - 1 ticks further, their TELEMETRY sent)."""
+    from guardid.capture.run import capture
+    from guardid.excitation.sines import SumOfSines
+    from guardid.robot import load_robot
+
+    traj = SumOfSines([[0.3], [0.1]], [[0.2], [0.3]], [[0.0], [0.0]], [0.0, 0.2])
+    port = AheadRecorder(open_port("sim://guard?seed=2"))
+    try:
+        session = Session(port)
+        session.handshake()
+        ticks = []
+        result = capture(session, load_robot("guard"), traj, 3.0, tmp_path / "run.csv", {},
+                         on_record=lambda tick, *_: ticks.append(tick),
+                         until=lambda: len(ticks) >= 50)  # fmt: skip
+    finally:
+        port.close()
+    assert result.ended == "identified" and result.rows == 50
+    frames = [P.decode(seg) for seg in bytes(port.received).split(b"\x00")[:-1]]
+    telemetry = [f.msg.tick for f in frames if type(f.msg) is P.MESSAGES["TELEMETRY"]]
+    assert max(telemetry) == ticks[-1]
