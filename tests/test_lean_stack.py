@@ -333,3 +333,22 @@ def test_a_capture_ended_by_until_idles_the_robot_at_that_rows_tick(tmp_path):
     frames = [P.decode(seg) for seg in bytes(port.received).split(b"\x00")[:-1]]
     telemetry = [f.msg.tick for f in frames if type(f.msg) is P.MESSAGES["TELEMETRY"]]
     assert max(telemetry) == ticks[-1]
+
+
+def test_telemetry_clamps_readings_beyond_int16_milli_units_and_numbers_frames_on():
+    """A reading beyond +-32.767 V or A goes out as the int16 limit (worked out by hand:
+    40 A -> 32767 mA, -33 V -> -32768 mV); in-range values rounded half up; no sequence
+    number lost to the clamping."""
+    device = make_sim_device("guard", open_port("sim://guard").options)
+    readings = iter(
+        [([5, -7], [1.2346, -33.0], [40.0, -0.0004]), ([6, -8], [0.5, 0.25], [1.0, 2.0])]
+    )
+    device._read_plant = lambda volts: next(readings)
+    device.streaming = True
+    device.advance()
+    device.advance()
+    frames = [P.decode(seg) for seg in device.take_output().split(b"\x00")[:-1]]
+    assert [f.seq for f in frames] == [0, 1]
+    first, second = (f.msg for f in frames)
+    assert (first.position, first.voltage, first.current) == ((5, -7), (1235, -32768), (32767, 0))
+    assert (second.voltage, second.current) == ((500, 250), (1000, 2000))

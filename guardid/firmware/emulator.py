@@ -199,7 +199,7 @@ class FirmwareEmulator:
         handlers = self._by_id
         for frame in self.parser.feed(data):  # a Frame is the (msg_id, seq, message) key
             self.last_host_tick = self.tick
-            if frame == self._last_frame and self._last_reply is not None:
+            if self._last_reply is not None and frame == self._last_frame:
                 self._send(self._last_reply)  # a retry: answer again, change nothing
                 continue
             self._last_frame, self._last_reply = frame, None
@@ -413,19 +413,14 @@ class FirmwareEmulator:
             # TELEMETRY(tick, status, mode, counts, voltage [mV], current [mA], setpoint),
             # packed from its flattened values (the bytes encode() gives for the message);
             # voltage [V] and current [A] to milli-units (rounded half up), clamped to int16
-            self._out += self._telemetry_frame(
-                tick,
-                status,
-                mode,
-                *counts,
-                *[
-                    m
-                    if -32768 <= (m := floor(x * 1000.0 + 0.5)) <= 32767
-                    else (-32768 if m < 0 else 32767)
-                    for x in (*volts, *amps)
-                ],
-                *self.setpoint,
-            )
+            # (the packer refuses a value out of range without numbering a frame)
+            frame, setpoint = self._telemetry_frame, self.setpoint
+            milli = [floor(x * 1000.0 + 0.5) for x in (*volts, *amps)]
+            try:
+                self._out += frame(tick, status, mode, *counts, *milli, *setpoint)
+            except ValueError:
+                milli = [-32768 if m < -32768 else 32767 if m > 32767 else m for m in milli]
+                self._out += frame(tick, status, mode, *counts, *milli, *setpoint)
 
     def _sample_fields(self, volts) -> tuple:
         """(counts, voltage [V], current [A]) of ``plant.step(volts)``, for a plant without
