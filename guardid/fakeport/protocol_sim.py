@@ -132,11 +132,10 @@ class Serial(SerialBase):
         host would ask ``in_waiting``, ``read(1)`` and ``read(in_waiting)``.
 
         ``ahead_ticks`` (lock-step, a link without faults and a device that ``runs_ahead``
-        only; ignored otherwise): once
-        bytes arrived, the device runs that many ticks more (within the read's timeout)
-        before the read returns, their bytes included: a host whose next bytes do not
-        depend on what those ticks send (setpoints streamed ahead) takes several ticks'
-        telemetry in one call."""
+        only; ignored otherwise): once bytes arrived, the device runs that many ticks more
+        (within the read's timeout) before the read returns, their bytes included: a host
+        whose next bytes do not depend on what those ticks send (setpoints streamed ahead)
+        takes several ticks' telemetry in one call."""
         self._check_open()
         with self._lock:  # the condition's lock (waits happen in _fill_realtime only)
             engine = self.engine

@@ -345,11 +345,12 @@ class Session:
 
         ``run_ahead`` (for a caller that sends nothing in reaction to a frame before the
         run ends): on a lock-step ``sim://`` link without faults the robot runs up to
-        ``depth - 1`` ticks beyond the frame just read in one read (never past the last
-        row's tick, never as long as the watchdog's timeout), and the setpoints for all
-        the frames read go in one write before they are yielded: the same bytes in both
-        directions as one tick at a time, fewer calls per tick. A ``break`` or exception in
-        the caller then comes up to that many ticks late for the robot.
+        ``depth - 1`` ticks beyond the frame just read in one read (never beyond the
+        setpoints sent, never a host silence near the watchdog's timeout, one tick at a
+        time over the last ``depth`` ticks), and the setpoints for all the frames read go
+        in one write before they are yielded: the same bytes in both directions as one
+        tick at a time, fewer calls per tick. A ``break`` or exception in the caller then
+        comes up to that many ticks late for the robot (docs/lockstep_speed.md).
         """
         rows = setpoints_counts
         if not isinstance(rows, LazyRows):
