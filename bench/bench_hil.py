@@ -1,7 +1,8 @@
 """Lock-step hardware-in-the-loop speed through the whole stack, as a multiple of real time.
 
 Host session -> codec -> sim:// port -> firmware emulator (fixed-point PID) -> simulated
-guard plant -> sensors -> telemetry -> parser, for a closed-loop run of sums of sines.
+guard plant -> sensors -> telemetry -> parser, for a closed-loop run of sums of sines
+(``Session.track(run_ahead=True)``, as ``guardid capture`` runs it without --until-std).
 Prints the median over runs (and the worst) by wall clock, and by CPU time, which a busy
 machine disturbs less. Run: python bench/bench_hil.py [robot seconds per run, default 60]
 [runs, default 5]
