@@ -67,7 +67,7 @@ def parse_block(
         return None, "declined"
     b = np.frombuffer(block, dtype=np.uint8)
     if decimals is not None and decimals.size == ncols:
-        values = _fixed_point(b, ints, decimals)
+        values = _fixed_point(block, b, ints, decimals)
         if values is not None:
             return values, "fixed"
     values = _plain(b, ints, ncols)
@@ -89,8 +89,10 @@ def _integers(block: bytes) -> np.ndarray | None:
     return ints
 
 
-def _fixed_point(b: np.ndarray, ints: np.ndarray, decimals: np.ndarray) -> np.ndarray | None:
-    """The values of ``ints`` (parsed from the bytes ``b``) when every line has
+def _fixed_point(
+    block: bytes, b: np.ndarray, ints: np.ndarray, decimals: np.ndarray
+) -> np.ndarray | None:
+    """The values of ``ints`` (parsed from ``block``, whose bytes are ``b``) when every line has
     ``decimals.size`` fields and every field of column c has its point exactly
     ``decimals[c]`` digits before its end (no point where ``decimals[c]`` is 0); else None.
     Checks the separators' and the points' places, not each byte: cheaper than
@@ -101,10 +103,10 @@ def _fixed_point(b: np.ndarray, ints: np.ndarray, decimals: np.ndarray) -> np.nd
         return None
     ends = seps.reshape(-1, ncols)  # each field's separator, by row and column
     nrows = len(ends)
-    if not (b[ends[:, -1]] == 10).all() or np.count_nonzero(b == 10) != nrows:
+    if not (b[ends[:, -1]] == 10).all() or block.count(b"\n") != nrows:
         return None  # a line with another field count
     dotted = np.flatnonzero(decimals)
-    if np.count_nonzero(b == 46) != nrows * dotted.size:
+    if block.count(b".") != nrows * dotted.size:
         return None  # a point where none belongs, or one missing
     if dotted.size:
         points = ends[:, dotted] - (decimals[dotted] + 1)
