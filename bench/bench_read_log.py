@@ -106,11 +106,10 @@ def _as_float_reads(path: Path, columns: dict) -> bool:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--hours", type=int, nargs="+", default=[1, 4])
-    ap.add_argument("--runs", type=int, default=7)
-    ap.add_argument(
-        "--cache", type=Path, default=Path(tempfile.gettempdir()) / "guardid-bench-cache"
-    )
+    ap.add_argument("--hours", type=int, nargs="+", default=[1, 4], help="Log lengths [h].")
+    ap.add_argument("--runs", type=int, default=7, help="Rounds (read_log, pandas) per log.")
+    cache = Path(tempfile.gettempdir()) / "guardid-bench-cache"
+    ap.add_argument("--cache", type=Path, default=cache, help="bench_identify.py's cache.")
     args = ap.parse_args()
     import pandas  # noqa: F401  -- imported before the first round, not timed
 
