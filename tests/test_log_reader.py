@@ -379,7 +379,7 @@ def test_fixed_path_declines_rows_out_of_its_format(block, decimals, why):
     decimals = np.array(decimals)
     ints = _integers(block)
     if ints is not None and ints.size % 2 == 0:
-        assert _fixed_point(block, np.frombuffer(block, np.uint8), ints, decimals) is None, why
+        assert _fixed_point(np.frombuffer(block, np.uint8), ints, decimals) is None, why
     got, how = parse_block(block, 2, decimals)
     assert how != "fixed", why
     if got is not None:

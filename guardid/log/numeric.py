@@ -53,11 +53,12 @@ def parse_plain(block: bytes, ncols: int, decimals: np.ndarray | None = None) ->
 
 
 def parse_block(
-    block: bytes, ncols: int, decimals: np.ndarray | None = None
+    block: bytes, ncols: int, decimals: np.ndarray | None = None, out=None
 ) -> tuple[np.ndarray | None, str]:
     """:func:`parse_plain` and the path that read the block: ``fixed`` (every field has the
     point where ``decimals`` puts it), ``plain`` (the point found field by field) or
-    ``declined`` (None: not plain decimals)."""
+    ``declined`` (None: not plain decimals). ``out(rows)``, if given, returns the (rows,
+    ncols) float64 array to fill (the caller's store; written to even when declined)."""
     if not block:
         return np.empty((0, ncols)), "plain"
     if not block.endswith(b"\n"):
@@ -67,11 +68,17 @@ def parse_block(
         return None, "declined"
     b = np.frombuffer(block, dtype=np.uint8)
     if decimals is not None and decimals.size == ncols:
-        values = _fixed_point(block, b, ints, decimals)
+        values = _fixed_point(b, ints, decimals, out)
         if values is not None:
             return values, "fixed"
     values = _plain(b, ints, ncols)
-    return values, "declined" if values is None else "plain"
+    if values is None:
+        return None, "declined"
+    if out is not None:
+        dest = out(len(values))
+        dest[...] = values
+        values = dest
+    return values, "plain"
 
 
 def _integers(block: bytes) -> np.ndarray | None:
@@ -89,24 +96,22 @@ def _integers(block: bytes) -> np.ndarray | None:
     return ints
 
 
-def _fixed_point(
-    block: bytes, b: np.ndarray, ints: np.ndarray, decimals: np.ndarray
-) -> np.ndarray | None:
-    """The values of ``ints`` (parsed from ``block``, whose bytes are ``b``) when every line has
+def _fixed_point(b: np.ndarray, ints: np.ndarray, decimals: np.ndarray, out=None):
+    """The values of ``ints`` (parsed from the bytes ``b``) when every line has
     ``decimals.size`` fields and every field of column c has its point exactly
     ``decimals[c]`` digits before its end (no point where ``decimals[c]`` is 0); else None.
     Checks the separators' and the points' places, not each byte: cheaper than
-    :func:`_plain`, the same values."""
+    :func:`_plain`, the same values (in ``out(rows)`` if given, as :func:`parse_block`)."""
     ncols = decimals.size
     seps = np.flatnonzero(b <= 44)  # ',' and '\n' (no other byte below 45 got parsed)
     if seps.size != ints.size:
         return None
     ends = seps.reshape(-1, ncols)  # each field's separator, by row and column
     nrows = len(ends)
-    if not (b[ends[:, -1]] == 10).all() or block.count(b"\n") != nrows:
+    if not (b[ends[:, -1]] == 10).all() or np.count_nonzero(b == 10) != nrows:
         return None  # a line with another field count
     dotted = np.flatnonzero(decimals)
-    if block.count(b".") != nrows * dotted.size:
+    if np.count_nonzero(b == 46) != nrows * dotted.size:
         return None  # a point where none belongs, or one missing
     if dotted.size:
         points = ends[:, dotted] - (decimals[dotted] + 1)
@@ -115,16 +120,15 @@ def _fixed_point(
             before[:, 0] = np.concatenate(([-1], ends[:-1, -1]))
         if not ((b[points] == 46).all() and (points > before).all()):
             return None  # the point elsewhere in the field (or in the field before)
-    values = ints.reshape(nrows, ncols) / _POW10[decimals]  # exact / exact: correctly rounded
     zero = np.flatnonzero(ints == 0)
-    if zero.size:  # '-0.000' keeps its sign, as float() does; a lone '-' is no number
-        start = np.where(zero > 0, seps[zero - 1] + 1, 0)
-        neg = b[start] == 45
-        if neg.any():
-            lone = (decimals[zero[neg] % ncols] == 0) & (b[start[neg] + 1] - 48 >= 10)
-            if lone.any():
-                return None
-            values.reshape(-1)[zero[neg]] = -0.0
+    start = np.where(zero > 0, seps[zero - 1] + 1, 0)
+    neg = b[start] == 45  # '-0.000' keeps its sign, as float() does; a lone '-' is no number
+    negzero, start = zero[neg], start[neg]
+    if ((decimals[negzero % ncols] == 0) & (b[start + 1] - 48 >= 10)).any():
+        return None
+    dest = None if out is None else out(nrows)  # exact / exact: correctly rounded
+    values = np.divide(ints.reshape(nrows, ncols), _POW10[decimals], out=dest)
+    values[np.divmod(negzero, ncols)] = -0.0
     return values
 
 

@@ -115,9 +115,18 @@ class _Rows:
         self._segments: list[tuple[int, int | np.ndarray]] = []  # (first row, line(s))
 
     def add(self, rows: np.ndarray, lines: int | np.ndarray, nbytes: int) -> None:
-        """Append ``rows`` (m, ncols) parsed from ``nbytes`` of text; ``lines``: the first
-        row's line number when the rows are consecutive lines, else each row's."""
+        """Append ``rows`` (m, ncols) parsed from ``nbytes`` of text (already in place when
+        they are :meth:`space`'s view); ``lines``: the first row's line number when the rows
+        are consecutive lines, else each row's."""
         m = len(rows)
+        view = self.space(m, nbytes)
+        if not np.may_share_memory(rows, self.data):
+            view[...] = rows
+        self._segments.append((self.n, lines))
+        self.n += m
+
+    def space(self, m: int, nbytes: int) -> np.ndarray:
+        """A writable (m, ncols) view of the next ``m`` rows (the store grown as needed)."""
         if self.n + m > self.data.shape[1]:
             if self.n == 0:  # rows in the file, from this block's bytes per row, +2 %
                 want = int(m * self.file_bytes / max(nbytes, 1) * 1.02) + 16
@@ -126,9 +135,7 @@ class _Rows:
             grown = np.empty((self.data.shape[0], max(self.n + m, want)))
             grown[:, : self.n] = self.data[:, : self.n]
             self.data = grown
-        self.data[:, self.n : self.n + m] = rows.T
-        self._segments.append((self.n, lines))
-        self.n += m
+        return self.data[:, self.n : self.n + m].T
 
     def line_of(self, row: int) -> int:
         for first, lines in reversed(self._segments):
@@ -227,7 +234,7 @@ class _Reader:
 
     def _parse_plain(self, block: bytes, ncols: int, store: _Rows) -> bool:
         """Parse ``block`` on the fast path; False (nothing consumed) when it cannot."""
-        rows, how = parse_block(block, ncols, self.decimals)
+        rows, how = parse_block(block, ncols, self.decimals, lambda m: store.space(m, len(block)))
         if rows is None:
             return False
         if how == "plain":
