@@ -79,7 +79,8 @@ def compare(path: Path, runs: int) -> None:
     tracemalloc.stop()
     log.removeHandler(handler)
     kept = sum(c.nbytes for c in data.columns.values())
-    print(f"  path: {handler.lines[-1].split(': ', 1)[1]}")
+    said = handler.lines[-1].split(": ", 1)[1] if handler.lines else "(not logged by this tree)"
+    print(f"  path: {said}")
     print(
         f"  read_log peak traced {peak / 1e6:.1f} MB = {peak / kept:.2f}x the arrays kept "
         f"({kept / 1e6:.1f} MB), {peak / size:.2f}x the file"
