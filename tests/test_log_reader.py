@@ -364,6 +364,7 @@ def test_writer_rows_read_on_the_fixed_path_as_float_reads_them(rows):
         (b"0.5,1.2500\n0.50,1.2500\n", [1, 4], "a decimal more in column 1"),
         (b"0.5,12\n0.5,1.2.34\n", [1, 4], "a point borrowed from the field before"),
         (b"0.5,1.2500\n0.5,1.2.500\n", [1, 4], "two points in a field"),
+        (b"0.250,1.5\n5,1.2.5\n", [3, 1], "a point borrowed from the line before"),
         (b"5,1.2500\n5.0,1.2500\n", [0, 4], "a point in an integer column"),
         (b"0.5\n1.2500,0.5,1.2500\n", [1, 4], "lines of 1 and 3 fields"),
         (b"0.5,1.2500,\n", [1, 4], "a trailing comma"),
