@@ -312,3 +312,115 @@ def test_fast_parser_leaves_anything_but_plain_decimals_to_the_checked_path(bloc
 
     assert parse_plain(block, 2) is None
     assert parse_plain(b"1,-2.50\n", 2).tolist() == [[1.0, -2.5]]
+
+
+# --- the fixed-point path: guardid's writer format, read without finding every point -------
+
+_ROWS = st.lists(  # values across every magnitude a row's columns may hold, -0.0 and ties
+    st.tuples(
+        st.integers(0, 2**52),  # tick
+        st.floats(0, 1e9) | st.sampled_from([0.0, 0.0000005, 0.0000015, 2.5e-7]),  # time_s
+        st.lists(st.integers(-(2**31), 2**31), min_size=2, max_size=2),  # counts
+        st.lists(
+            st.floats(-9e6, 9e6) | st.sampled_from([-0.0, -1e-10, 5e-10, -4.9999999999e-10]),
+            min_size=4,
+            max_size=4,
+        ),  # q, sp
+        st.lists(
+            st.floats(-9e12, 9e12) | st.sampled_from([-0.0, -0.0004, 0.0005, -0.0015]),
+            min_size=4,
+            max_size=4,
+        ),  # v, i
+        st.integers(0, 255),  # status
+    ),
+    min_size=1,
+    max_size=12,
+)
+
+
+@settings(max_examples=50, deadline=None)
+@given(_ROWS)
+def test_writer_rows_read_on_the_fixed_path_as_float_reads_them(rows):
+    """Random values through the writer's own row format, read back on the fixed-point path:
+    every cell bit for bit what ``float(text)`` makes of it (the sign of -0.0 too)."""
+    from guardid.log.csvlog import format_row
+    from guardid.log.numeric import decimals_of, parse_block
+
+    lines = [format_row(t, s, c, qs[:2], vi[:2], vi[2:], qs[2:], st_) for t, s, c, qs, vi, st_
+             in rows]  # fmt: skip
+    block = "".join(lines).encode()
+    got, how = parse_block(block, 13, decimals_of(lines[0].encode(), 13))
+    want = np.array([[float(x) for x in line.split(",")] for line in lines])
+    assert how == "fixed"
+    assert np.array_equal(got, want) and np.array_equal(np.signbit(got), np.signbit(want))
+
+
+@pytest.mark.parametrize(
+    ("block", "decimals", "why"),
+    [
+        (b"0.5,1.2500\n0.5,1250\n", [1, 4], "a point missing"),
+        (b"0.5,1.2500\n0.5,12.500\n", [1, 4], "the point one digit off"),
+        (b"0.5,1.2500\n0.5,1.25000\n", [1, 4], "one decimal more"),
+        (b"0.5,1.2500\n0.50,1.2500\n", [1, 4], "a decimal more in column 1"),
+        (b"0.5,12\n0.5,1.2.34\n", [1, 4], "a point borrowed from the field before"),
+        (b"0.5,1.2500\n0.5,1.2.500\n", [1, 4], "two points in a field"),
+        (b"0.250,1.5\n5,1.2.5\n", [3, 1], "a point borrowed from the line before"),
+        (b"5,1.2500\n5.0,1.2500\n", [0, 4], "a point in an integer column"),
+        (b"0.5\n1.2500,0.5,1.2500\n", [1, 4], "lines of 1 and 3 fields"),
+        (b"0.5,1.2500,\n", [1, 4], "a trailing comma"),
+        (b"5\n1.2500\n", [0, 4], "a row split over two lines"),
+        (b"5,1.2500\n-,1.2500\n", [0, 4], "a lone '-'"),
+    ],
+)
+def test_fixed_path_declines_rows_out_of_its_format(block, decimals, why):
+    """Each check of the fixed path: a row out of the first row's format is not read there
+    (it goes to the plain path, which reads a plain decimal exactly or declines)."""
+    from guardid.log.numeric import _fixed_point, _integers, parse_block
+
+    decimals = np.array(decimals)
+    ints = _integers(block)
+    if ints is not None and ints.size % 2 == 0:
+        assert _fixed_point(np.frombuffer(block, np.uint8), ints, decimals) is None, why
+    got, how = parse_block(block, 2, decimals)
+    assert how != "fixed", why
+    if got is not None:
+        assert got.tolist() == [[float(x) for x in ln.split(b",")] for ln in block.splitlines()]
+
+
+_DEC = np.array([1, 4])
+
+
+def test_fixed_path_reads_signs_and_bare_points():
+    from guardid.log.numeric import parse_block
+
+    got, how = parse_block(b"-0.0,-0.0000\n-.5,.2500\n7.0,-1.0001\n", 2, _DEC)
+    assert how == "fixed"
+    assert got.tolist() == [[0.0, 0.0], [-0.5, 0.25], [7.0, -1.0001]]
+    assert np.signbit(got[0]).all() and not np.signbit(got[1:, 1][0])
+
+
+def test_numbers_beyond_int64_are_not_clipped():
+    """numpy's integer parser clips at the int64 range: numbers that large (and any from
+    2^53, not exact in float64) leave the fast paths; the checked path reads them."""
+    for block in (b"-99999999999999999999,1\n", b"99999999999999999999,1\n",
+                  b"9007199254740993,1\n"):  # fmt: skip
+        assert parse_plain(block, 2) is None
+    assert parse_plain(b"9007199254740991,-1\n", 2).tolist() == [[2.0**53 - 1, -1.0]]
+
+
+def test_the_path_that_read_a_log_is_logged(sim_log, tmp_path, caplog):
+    """A guardid log reads on the fixed path; a log whose decimals vary row by row on the
+    plain path, to the same values; stdout and stderr stay clean (DEBUG log only)."""
+    caplog.set_level("DEBUG", logger="guardid.log")
+    n = len(read_log(sim_log).columns["tick"])
+    assert f"{{'fixed': {n}, 'plain': 0, 'checked': 0}}" in caplog.text
+    caplog.clear()
+    head, data, foot = parts(sim_log.read_text())
+    varied = [re.sub(r"\.(\d{3}),", r".\g<1>0,", ln, count=1) if k % 2 else ln
+              for k, ln in enumerate(data)]  # fmt: skip
+    path = write(tmp_path, "varied.csv", "".join(head + varied + foot))
+    got = read_log(path)
+    assert f"{{'fixed': 0, 'plain': {n}, 'checked': 0}}" in caplog.text
+    names, rows, _ = reference(path.read_text())
+    for c, name in enumerate(names):
+        assert np.array_equal(got.columns[name], rows[:, c]), name

@@ -55,6 +55,19 @@ def column_names(joint_names) -> list[str]:
     return cols + ["status"]
 
 
+def format_row(tick: int, time_s: float, counts, q, v, i, sp, status: int) -> str:
+    """One data line, ``\\n`` included: per-joint sequences in joint order, SI units, each
+    column with fixed decimals (time 6, angles 9, volts and amperes 3, integers none), the
+    fixed-point format :mod:`guardid.log.numeric` reads fastest."""
+    buf = io.StringIO()
+    buf.write(f"{tick},{time_s:.6f}")
+    buf.write("".join(f",{int(c)}" for c in counts))
+    for seq, fmt in ((q, ".9f"), (v, ".3f"), (i, ".3f"), (sp, ".9f")):
+        buf.write("".join(f",{x:{fmt}}" for x in seq))
+    buf.write(f",{int(status)}\n")
+    return buf.getvalue()
+
+
 def _comment(text: str) -> str:
     return "".join(f"# {line}\n" for line in text.rstrip("\n").splitlines())
 
@@ -123,13 +136,7 @@ class LogWriter:
 
     def write_row(self, tick: int, time_s: float, counts, q, v, i, sp, status: int) -> None:
         """Append one row: per-joint sequences in joint order, SI units."""
-        buf = io.StringIO()
-        buf.write(f"{tick},{time_s:.6f}")
-        buf.write("".join(f",{int(c)}" for c in counts))
-        for seq, fmt in ((q, ".9f"), (v, ".3f"), (i, ".3f"), (sp, ".9f")):
-            buf.write("".join(f",{x:{fmt}}" for x in seq))
-        buf.write(f",{int(status)}\n")
-        self._append(buf.getvalue(), f"row {self.rows + 1}")
+        self._append(format_row(tick, time_s, counts, q, v, i, sp, status), f"row {self.rows + 1}")
         self.rows += 1
         self._sync(force=False)
 

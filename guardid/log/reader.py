@@ -15,6 +15,7 @@ the column names (an editor's) is skipped.
 
 from __future__ import annotations
 
+import logging
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,13 +25,14 @@ import yaml
 
 from guardid.errors import LogFormatError, LogWarning
 from guardid.log.csvlog import KNOWN_LOG_VERSIONS, LOG_VERSION_KEY, per_joint_column
-from guardid.log.numeric import RowError, parse_lines, parse_plain
+from guardid.log.numeric import RowError, decimals_of, parse_block, parse_lines
 
 BLOCK_BYTES = 1 << 18  #: bytes read and parsed at a time (256 kB: the work arrays stay in cache)
 _GZIP_MAGIC = b"\x1f\x8b"
 _BOM = b"\xef\xbb\xbf"  #: UTF-8 byte-order mark (some editors write it)
 _OTHER_DELIMITERS = {"\t": "tabs", ";": "semicolons"}
 _YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml when built with it
+_LOG = logging.getLogger("guardid.log")
 
 
 @dataclass
@@ -113,9 +115,18 @@ class _Rows:
         self._segments: list[tuple[int, int | np.ndarray]] = []  # (first row, line(s))
 
     def add(self, rows: np.ndarray, lines: int | np.ndarray, nbytes: int) -> None:
-        """Append ``rows`` (m, ncols) parsed from ``nbytes`` of text; ``lines``: the first
-        row's line number when the rows are consecutive lines, else each row's."""
+        """Append ``rows`` (m, ncols) parsed from ``nbytes`` of text (already in place when
+        they are :meth:`space`'s view); ``lines``: the first row's line number when the rows
+        are consecutive lines, else each row's."""
         m = len(rows)
+        view = self.space(m, nbytes)
+        if not np.may_share_memory(rows, self.data):
+            view[...] = rows
+        self._segments.append((self.n, lines))
+        self.n += m
+
+    def space(self, m: int, nbytes: int) -> np.ndarray:
+        """A writable (m, ncols) view of the next ``m`` rows (the store grown as needed)."""
         if self.n + m > self.data.shape[1]:
             if self.n == 0:  # rows in the file, from this block's bytes per row, +2 %
                 want = int(m * self.file_bytes / max(nbytes, 1) * 1.02) + 16
@@ -124,9 +135,7 @@ class _Rows:
             grown = np.empty((self.data.shape[0], max(self.n + m, want)))
             grown[:, : self.n] = self.data[:, : self.n]
             self.data = grown
-        self.data[:, self.n : self.n + m] = rows.T
-        self._segments.append((self.n, lines))
-        self.n += m
+        return self.data[:, self.n : self.n + m].T
 
     def line_of(self, row: int) -> int:
         for first, lines in reversed(self._segments):
@@ -140,6 +149,8 @@ class _Reader:
         self.path, self.f = path, f
         self.line = 0  # number of the last line consumed
         self.warnings: list[str] = []
+        self.decimals = None  # each column's decimals, from the first data row (fixed path)
+        self.path_rows = {"fixed": 0, "plain": 0, "checked": 0}  # rows read by each path
 
     def _text(self, raw: bytes, no: int) -> str:
         if b"\x00" in raw:
@@ -168,7 +179,9 @@ class _Reader:
         header = _yaml(path, head, "header")
         _check_version(path, header)
         store = _Rows(len(names), path.stat().st_size)
+        self.decimals = decimals_of(pending, len(names))
         foot = self._body(names, pending, store)
+        _LOG.debug("%s: %d rows; read by path: %s", path, store.n, self.path_rows)
         footer = _yaml(path, foot, "footer").get("footer") if foot is not None else None
         columns = {name: store.data[c, : store.n] for c, name in enumerate(names)}
         if "tick" in columns:
@@ -221,9 +234,12 @@ class _Reader:
 
     def _parse_plain(self, block: bytes, ncols: int, store: _Rows) -> bool:
         """Parse ``block`` on the fast path; False (nothing consumed) when it cannot."""
-        rows = parse_plain(block, ncols)
+        rows, how = parse_block(block, ncols, self.decimals, lambda m: store.space(m, len(block)))
         if rows is None:
             return False
+        if how == "plain":
+            self.decimals = None  # not fixed-point: the next blocks go straight to plain
+        self.path_rows[how] += len(rows)
         store.add(rows, self.line + 1, len(block))
         self.line += len(rows)
         return True
@@ -250,6 +266,7 @@ class _Reader:
                     first + k, "a second log's column names (two logs appended? split them)"
                 )
         rows = parse_lines(lines, first, names)
+        self.path_rows["checked"] += len(rows)
         numbers = [first + k for k, line in enumerate(lines) if line.strip()]
         store.add(rows, np.asarray(numbers), len(block))
         self.line += len(lines)
