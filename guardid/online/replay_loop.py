@@ -63,10 +63,29 @@ class Rows:
     def __init__(self, t, ok):
         self.t, self.ok = t, ok
         self._chunks = []
+        self._info = {}
 
     def set_chunk(self, c0, A, y):
         self._chunks = [*self._chunks[-1:], (c0, A, y)]
         self.c0, self.A, self.y = c0, A, y
+        self._info = {}
+
+    def information(self, i0, i1, lam, f):
+        """(A^T A (L, p, p), the information the rows i0 .. i1 - 1 add from zero
+        sum_(i<=k) lam^(k-i) (A_i^T A_i + F') (L, p, p), lam^(k+1) (L,)) with F' = diag(f):
+        what every method's information over the block is made of (W_k = that + lam^(k+1)
+        W_0), formed once for all the methods on the fast path over the same block."""
+        key = (i0, i1, lam, f.tobytes())
+        if key not in self._info:
+            A = self.A[i0 - self.c0 : i1 - self.c0]
+            L, _, p = A.shape
+            AtA = A.transpose(0, 2, 1) @ A
+            Q = AtA.reshape(L, p * p).copy()
+            Q[:, :: p + 1] += f
+            data = lfilter([1.0], [1.0, -lam], Q, axis=0)
+            powers = lam ** np.arange(1, L + 1, dtype=float)
+            self._info = {key: (AtA, data.reshape(L, p, p), powers)}
+        return self._info[key]
 
     def row(self, i):
         """(A (m, b), y (m,)) of row ``i`` as the live tracker forms them (present joints)."""
@@ -109,19 +128,17 @@ class MethodReplay:
         self.f = (1.0 - lam) * floor  # the information added per row by the floor (p,)
 
     # -- driving ----------------------------------------------------------------------------
-    def run(self, rows: Rows, i0: int, i1: int) -> None:
-        """Rows i0 .. i1 - 1 (within the current chunk of ``rows``)."""
-        i = i0
-        while i < i1:
-            if self._fast_ok(float(rows.t[i])):
-                if self.fast is None:
-                    self._load()
-                i = self._block(rows, i, min(i + BLOCK, i1))
-            else:
-                if self.fast is not None:
-                    self._store()
-                self._slow(rows, i)
-                i += 1
+    def advance(self, rows: Rows, i: int, i1: int) -> int:
+        """Row ``i`` on the slow path or a fast block from it (up to :data:`BLOCK` rows, not
+        past ``i1``); returns the next row."""
+        if self._fast_ok(float(rows.t[i])):
+            if self.fast is None:
+                self._load()
+            return self._block(rows, i, min(i + BLOCK, i1))
+        if self.fast is not None:
+            self._store()
+        self._slow(rows, i)
+        return i + 1
 
     def finish(self) -> None:
         if self.fast is not None:
@@ -193,14 +210,11 @@ class MethodReplay:
         c0 = rows.c0
         A = rows.A[i0 - c0 : i1 - c0]
         y = rows.y[i0 - c0 : i1 - c0]
-        L, n, p = A.shape
+        L = len(A)
         AT = A.transpose(0, 2, 1)
-        AtA = AT @ A
-        Q = AtA.reshape(L, p * p).copy()
-        Q[:, :: p + 1] += self.f
+        AtA, data, powers = rows.information(i0, i1, lam, self.f)
         W0 = st["W"]
-        Wf = lfilter([1.0], [1.0, -lam], Q, axis=0, zi=(lam * W0).reshape(1, p * p))[0]
-        W = Wf.reshape(L, p, p)
+        W = data + powers[:, None, None] * W0
         if self.kind == "rls":
             prior, post = self._rls(W, W0, AtA, A, AT, y)
         else:
@@ -350,6 +364,18 @@ class MethodReplay:
     def _b(self, i):
         """The Hopfield biases after block row ``i``."""
         return self._Bd[i] + self.f * (self._phc[i] + self._psi[i])
+
+
+def run_together(methods, rows: Rows, i0: int, i1: int) -> None:
+    """Rows i0 .. i1 - 1 through every method, the one furthest behind advanced first: each
+    method takes the same blocks as on its own (:meth:`MethodReplay.run`), and methods on
+    the fast path over the same block share its information (:meth:`Rows.information`)."""
+    at = [i0] * len(methods)
+    while True:
+        k = min(range(len(methods)), key=at.__getitem__)
+        if at[k] >= i1:
+            return
+        at[k] = methods[k].advance(rows, at[k], i1)
 
 
 def _affine_scan(R, x0, X):
