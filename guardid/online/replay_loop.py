@@ -21,7 +21,7 @@ The fast path, per block (joint equations of absent joints as zero rows, which a
   (M = D^-1 + g S mean(W) S), each row keeping its own force at the step's start
   g S (b_j - W_j theta_0), so the rows' linearly implicit steps, with the biases' share of
   the state (psi below), are one affine recursion z_j = H z_(j-1) + x_j in z = [s; psi]:
-  one Cholesky solve and log2(16) products a step (:func:`_affine_scan`); the
+  one Cholesky solve and log2(16) products a step (:func:`_affine_scan_rows`); the
   fraction-to-boundary rule is applied to the step. With 1 row a step this is the live
   network's step (to round-off: the reference in tests/test_online_replay.py); with 16 the
   estimates stay within 2 % of each parameter's scale (largest |estimate|) of the live ones
@@ -294,10 +294,18 @@ class MethodReplay:
         starts = np.arange(0, L, K)
         counts = np.diff(np.append(starts, L))
         gS = g * S
-        Gs = gS[None, :, None] * np.add.reduceat(W, starts, axis=0) * S[None, None, :]
+        GW = gS[None, :, None] * W * S[None, None, :]  # g S W_j S per row
+        Gs = np.add.reduceat(GW, starts, axis=0)
         Gs /= counts[:, None, None]  # g S mean(W) S per step
-        rT = np.asfortranarray((gS * (Bd + f * phc - W @ c)).T)  # the biases' known part
+        # each row's own force at the step's start, g S (b_j - W_j theta_0), and the mean
+        # weights' response to the state's change since: r_j = g S (b_j - W_j c)
+        # + (g S mean(W) S - g S W_j S) s_0
+        dev = np.repeat(Gs, counts, axis=0)
+        dev -= GW
+        del GW
+        r = gS * (Bd + f * phc - W @ c)  # the biases' known part (L, p)
         gSf = gS * f
+        gSfS, lam_gSf = gSf * S, lam * gSf
         eye = np.eye(p)
         # per row j of a step, z = [s; psi]: psi_j = lam psi_(j-1) + S s_(j-1) and
         # M s_j = D^-1 s_(j-1) + r_j + g S f psi_j (the linearly implicit step), so
@@ -305,35 +313,33 @@ class MethodReplay:
         H = np.zeros((2 * p, 2 * p))
         H[p:, :p] = np.diag(S)
         H[p:, p:] = lam * eye
-        X = np.zeros((2 * p, K))
         z = np.concatenate([st["s"], np.zeros(p)])
         post = np.empty((L, 2 * p))  # z after each row
+        U = np.zeros((K + 1, 2 * p))  # the affine scan's [z_0; x_1 .. x_cnt], rows
         bound = float(np.abs(z[:p]).max())
-        diag = np.arange(p)
         k0 = 0
         for m, cnt in enumerate(counts.tolist()):
             s = z[:p]
             M = Gs[m]
-            # each row's own force at the step's start, g S (b_j - W_j theta_0), and the
-            # mean weights' response to the state's change since: r_j = g S (b_j - W_j c)
-            # - g S W_j S s_0 + g S mean(W) S s_0
-            B = np.empty((p, cnt + p), order="F")
-            B[:, :cnt] = rT[:, k0 : k0 + cnt]
-            B[:, :cnt] -= gS[:, None] * (W[k0 : k0 + cnt] @ (S * s)).T
-            B[:, :cnt] += M.dot(s)[:, None]
+            Bt = np.empty((cnt + p, p))  # [r_j ..; I] as rows: B = Bt.T, Fortran order
+            np.matmul(dev[k0 : k0 + cnt], s, out=Bt[:cnt])
+            Bt[:cnt] += r[k0 : k0 + cnt]
+            Bt[cnt:] = eye
             Dinv = 1.0 / (1.0 - s * s)
-            M[diag, diag] += Dinv
-            B[:, cnt:] = eye
-            _, B, info = dposv(M, B, overwrite_a=1, overwrite_b=1)
+            M.reshape(-1)[:: p + 1] += Dinv
+            _, B, info = dposv(M, Bt.T, overwrite_a=1, overwrite_b=1)
             if info != 0:  # not positive definite by round-off (as the estimator does)
                 M = Gs[m].copy()  # D^-1 already added
-                B = np.linalg.solve(M, np.concatenate([B[:, :cnt], eye], axis=1))
+                B = np.linalg.solve(M, np.concatenate([Bt[:cnt].T, eye], axis=1))
             Minv = B[:, cnt:]
-            H[:p, :p] = Minv * (Dinv + gSf * S)[None, :]
-            H[:p, p:] = Minv * (lam * gSf)[None, :]
-            X[:p, :cnt] = B[:, :cnt]
+            np.multiply(Minv, Dinv + gSfS, out=H[:p, :p])
+            np.multiply(Minv, lam_gSf, out=H[:p, p:])
             part = post[k0 : k0 + cnt]
-            part[:] = _affine_scan(H, z, X[:, :cnt]).T
+            Um = U[: cnt + 1]
+            Um[0] = z
+            Um[1:, :p] = B[:, :cnt].T
+            Um[1:, p:] = 0.0
+            part[:] = _affine_scan_rows(H, Um)
             ds = part[-1, :p] - s
             step = sqrt(ds.dot(ds))
             if bound < 0.99 and step < _TAU * (1.0 - bound):
@@ -367,9 +373,10 @@ class MethodReplay:
 
 
 def run_together(methods, rows: Rows, i0: int, i1: int) -> None:
-    """Rows i0 .. i1 - 1 through every method, the one furthest behind advanced first: each
-    method takes the same blocks as on its own (:meth:`MethodReplay.run`), and methods on
-    the fast path over the same block share its information (:meth:`Rows.information`)."""
+    """Rows i0 .. i1 - 1 through every method, the one furthest behind advanced first
+    (:meth:`MethodReplay.advance`): each method takes the same blocks as on its own, and
+    methods on the fast path over the same block share its information
+    (:meth:`Rows.information`)."""
     at = [i0] * len(methods)
     while True:
         k = min(range(len(methods)), key=at.__getitem__)
@@ -378,21 +385,19 @@ def run_together(methods, rows: Rows, i0: int, i1: int) -> None:
         at[k] = methods[k].advance(rows, at[k], i1)
 
 
-def _affine_scan(R, x0, X):
-    """(p, m): the states x_j = R x_(j-1) + X[:, j - 1], j = 1 .. m, from x0 (p,), for R (p,
-    p) and X (p, m), by recursive doubling (log2(m + 1) products instead of m)."""
-    p, m = X.shape
-    U = np.empty((p, m + 1))
-    U[:, 0] = x0
-    U[:, 1:] = X
-    P = R
+def _affine_scan_rows(R, U):
+    """(m, q): the states x_j = R x_(j-1) + u_j, j = 1 .. m, from U (m + 1, q) = [x_0; u_1;
+    .. u_m] as rows (U is overwritten), by recursive doubling (log2(m + 1) products instead
+    of m)."""
+    m = len(U) - 1
+    PT = R.T
     shift = 1
     while shift <= m:
-        U[:, shift:] += P @ U[:, : m + 1 - shift]
+        U[shift:] += U[: m + 1 - shift] @ PT
         shift *= 2
         if shift <= m:
-            P = P @ P
-    return U[:, 1:]
+            PT = PT @ PT
+    return U[1:]
 
 
 SCAN_ROWS = 32
