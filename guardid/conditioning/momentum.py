@@ -259,8 +259,9 @@ def period_regressor(model, q, v, dt: float, kink_points: int | None = None) -> 
     p_mom, rest = np.empty_like(exact), np.empty_like(exact)
     for s in range(0, n_t, TICKS_CHUNK):  # per tick; the full-parameter temporaries in chunks
         c = slice(s, s + TICKS_CHUNK)
-        p_mom[c] = model.momentum_regressor(q[c], v[c]) @ B
-        rest_full = model.rest_regressor(q[c], v[c])
+        mom_full, rest_full = model.momentum_and_rest_regressors(q[c], v[c])
+        p_mom[c] = mom_full @ B
+        del mom_full
         for j, cols in exact_cols:
             rest_full[:, j, cols] = 0.0
         rest[c] = rest_full @ B
