@@ -2,16 +2,19 @@
 used rows at a time.
 
 Each method (RLS, the windowed Hopfield network) runs on its own: the tracker's methods
-share only the rows. While its change detector is armed (neither learning a reference nor
-settling after a change) and the method takes rows, a block of up to :data:`BLOCK` rows goes
-through a fast path, else rows go one by one through the estimator and detector objects
+share only the rows and what is formed from the rows alone (each block's information).
+While its change detector is armed (neither learning a reference nor settling after a
+change) and the method takes rows, a block of up to :data:`BLOCK` rows goes through a fast
+path, else rows go one by one through the estimator and detector objects
 exactly as :meth:`OnlineIdentifier._use_row` feeds them (the first holdoff and reference
 seconds, and the seconds after a detected change).
 
 The fast path, per block (joint equations of absent joints as zero rows, which add nothing):
 
 - the information W_k = lam W_{k-1} + A_k^T A_k + (1 - lam) F of both estimators (RLS's
-  R = P^-1, the Hopfield network's weights) for all rows at once (one ``lfilter``);
+  R = P^-1, the Hopfield network's weights) for all rows at once: the data's part (one
+  ``lfilter`` from zero) once per block for every method on the fast path over it, the
+  start's part lam^(k+1) W_0 per method (the methods advance block by block together);
 - RLS: the gains K_k = (lam R_{k-1} + A_k^T A_k)^-1 A_k^T by one batched solve, then
   theta_k = (I - K_k A_k) theta_{k-1} + K_k y_k by running products of 32 rows at a time
   for all such runs at once (:func:`_product_scan`): the covariance-form update of
