@@ -49,7 +49,8 @@ def _descriptions(tmp_path):
 def test_momentum_and_rest_match_pinocchio(tmp_path):
     """Y_p theta = M(q) v and Y_r theta = -C(q, v)^T v + g(q) + friction(v) (pinocchio), on
     random states of every shipped chain, a perturbed guard and a prismatic-revolute chain;
-    and both are linear in the base parameters (the base regressor gives the same)."""
+    and both are linear in the base parameters (the base regressor gives the same); the
+    two at once (``momentum_and_rest_regressors``, one complex step) give the same."""
     rng = np.random.default_rng(7)
     for name, desc in _descriptions(tmp_path).items():
         model = build_model(desc)
@@ -65,6 +66,7 @@ def test_momentum_and_rest_match_pinocchio(tmp_path):
         rest = model.rest_regressor(q, v) @ model.params
         base = model.base.values(model.params)
         p_base = model.momentum_regressor(q, v) @ model.base.B @ base
+        p_both, rest_both = (y @ model.params for y in model.momentum_and_rest_regressors(q, v))
         for k in range(len(q)):
             m = pin.crba(pm, data, q[k])
             m = np.triu(m) + np.triu(m, 1).T + rotor_mass_matrix(desc)
@@ -76,6 +78,8 @@ def test_momentum_and_rest_match_pinocchio(tmp_path):
             assert np.abs(p[k] - want_p).max() <= 1e-10 * scale_p, name
             assert np.abs(p_base[k] - want_p).max() <= 1e-9 * scale_p, name
             assert np.abs(rest[k] - want_r).max() <= 1e-10 * scale_r, name
+            assert np.abs(p_both[k] - want_p).max() <= 1e-10 * scale_p, name
+            assert np.abs(rest_both[k] - want_r).max() <= 1e-10 * scale_r, name
 
 
 def test_rest_is_the_torque_minus_the_momentum_derivative(tmp_path):

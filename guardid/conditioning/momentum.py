@@ -259,8 +259,9 @@ def period_regressor(model, q, v, dt: float, kink_points: int | None = None) -> 
     p_mom, rest = np.empty_like(exact), np.empty_like(exact)
     for s in range(0, n_t, TICKS_CHUNK):  # per tick; the full-parameter temporaries in chunks
         c = slice(s, s + TICKS_CHUNK)
-        p_mom[c] = model.momentum_regressor(q[c], v[c]) @ B
-        rest_full = model.rest_regressor(q[c], v[c])
+        mom_full, rest_full = model.momentum_and_rest_regressors(q[c], v[c])
+        p_mom[c] = mom_full @ B
+        del mom_full
         for j, cols in exact_cols:
             rest_full[:, j, cols] = 0.0
         rest[c] = rest_full @ B
@@ -392,13 +393,18 @@ def filtered_rows(chunks, imp, valid, sos, skip: int, rows, n_cols: int):
     good = np.zeros((len(rows), n), dtype=bool)
     zi, done = [None] * n, np.zeros(n, dtype=int)  # carried state, stretch length so far
     transient = 0
+    out_rows = (A, y, good)
     for a, b, Phi in chunks:
         r0, r1 = np.searchsorted(rows, [a, b])
         for j in range(n):
             v = np.concatenate([[False], valid[a:b, j], [False]])
             starts = np.flatnonzero(~v[:-1] & v[1:])
             ends = np.flatnonzero(v[:-1] & ~v[1:])
-            for s, e in zip(starts, ends, strict=True):
+            alone = np.zeros(len(starts), dtype=bool)  # filtered on their own: carried state
+            if len(starts):
+                alone[0] = starts[0] == 0 and zi[j] is not None  # goes on from the last chunk
+                alone[-1] |= bool(valid[b - 1, j])  # runs on into the next chunk
+            for s, e in zip(starts[alone], ends[alone], strict=True):
                 block = (
                     Phi[s:e, j, :]
                     if imp is None
@@ -411,15 +417,57 @@ def filtered_rows(chunks, imp, valid, sos, skip: int, rows, n_cols: int):
                 at = np.arange(r0, r1)[(rows[r0:r1] >= a + s) & (rows[r0:r1] < a + e)]
                 i = rows[at] - (a + s)
                 ok = done[j] + i >= skip
-                at, i = at[ok], i[ok]
-                if imp is not None:
-                    y[at, j] = out[i, 0]
-                A[at, j, :] = out[i, 1:] if imp is not None else out[i]
-                good[at, j] = True
+                _keep(out_rows, j, at[ok], out[i[ok]], imp is not None)
                 done[j] += e - s
+            new_s, new_e = starts[~alone], ends[~alone]
+            transient += int(np.minimum(new_e - new_s, skip).sum())
+            _filter_from_rest(sos, Phi, imp, a, j, new_s, new_e, rows, skip, out_rows)
             if not valid[b - 1, j]:  # no stretch runs on into the next chunk
                 zi[j] = None
     return A, y, good, transient
+
+
+def _keep(out_rows, j, at, out, with_imp: bool) -> None:
+    """Joint ``j``'s filtered rows ``out`` (m, cols) into rows ``at`` (m,) of (A, y, good)."""
+    A, y, good = out_rows
+    if with_imp:
+        y[at, j] = out[:, 0]
+        A[at, j, :] = out[:, 1:]
+    else:
+        A[at, j, :] = out
+    good[at, j] = True
+
+
+def _filter_from_rest(sos, Phi, imp, a, j, starts, ends, rows, skip, out_rows) -> None:
+    """Joint ``j``'s stretches ``starts`` .. ``ends`` (chunk ticks, from ``a``) of a chunk,
+    each filtered from rest with nothing carried out, many in one ``sosfilt`` call: the
+    stretches side by side, zero-padded to a common length per power of two of their
+    lengths (a causal filter's outputs do not depend on what follows, and each lane's
+    arithmetic is that of its own call); their kept rows past ``skip`` into ``out_rows``."""
+    if not len(starts):
+        return
+    lens = ends - starts
+    lo, hi = np.searchsorted(rows, a + starts), np.searchsorted(rows, a + ends)
+    width = np.ceil(np.log2(lens)).astype(int)
+    cols = Phi.shape[2] + (imp is not None)
+    for w in np.unique(width):
+        sel = np.flatnonzero(width == w)
+        X = np.zeros((int(lens[sel].max()), len(sel), cols))
+        for lane, k in enumerate(sel.tolist()):
+            s, e = int(starts[k]), int(ends[k])
+            if imp is None:
+                X[: e - s, lane] = Phi[s:e, j, :]
+            else:
+                X[: e - s, lane, 0] = imp[a + s : a + e, j]
+                X[: e - s, lane, 1:] = Phi[s:e, j, :]
+        out = sosfilt(sos, X, axis=0)
+        count = hi[sel] - lo[sel]
+        first = np.repeat(lo[sel] - np.cumsum(count) + count, count)
+        at = first + np.arange(int(count.sum()))  # the kept rows of every lane, in order
+        lane = np.repeat(np.arange(len(sel)), count)
+        i = rows[at] - (a + starts[sel][lane])
+        ok = i >= skip
+        _keep(out_rows, j, at[ok], out[i[ok], lane[ok]], imp is not None)
 
 
 def rows_like(state: MomentumState, model, q) -> np.ndarray:

@@ -136,6 +136,18 @@ class ChainModel:
         mdot = self.momentum_regressor(q + 1j * h * qd, qd).imag / h
         return self.regressor(q, qd, np.zeros_like(qd)) - mdot
 
+    def momentum_and_rest_regressors(self, q, qd) -> tuple[np.ndarray, np.ndarray]:
+        """(Y_p, Y_r) (N, n, p) of :meth:`momentum_regressor` and :meth:`rest_regressor` at
+        the same states in one complex-step evaluation: Y_p is the real part of the momentum
+        regressor at q + i h qd (its h^2 terms vanish at h = 1e-30, so it is the real
+        evaluation's, to rounding), which :meth:`rest_regressor` forms anyway."""
+        q, qd, _ = _states(q, qd, qd)
+        h = 1e-30
+        stepped = self.momentum_regressor(q + 1j * h * qd, qd)
+        rest = self.regressor(q, qd, np.zeros_like(qd))
+        rest -= stepped.imag / h
+        return np.ascontiguousarray(stepped.real), rest
+
     def friction_index(self, j: int) -> int | None:
         """Index in ``param_names`` of joint j's first friction column (Fv; then Fc, Fo and
         Fs with the Stribeck model), None without friction."""

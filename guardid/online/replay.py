@@ -19,7 +19,7 @@ import time
 import numpy as np
 from scipy.signal import sosfilt, sosfilt_zi
 
-from guardid.online.replay_loop import MethodReplay, Rows
+from guardid.online.replay_loop import MethodReplay, Rows, run_together
 
 CHUNK_ROWS = 20000
 """Used rows whose regressor is formed at a time (memory: about 0.5 kB per row)."""
@@ -65,8 +65,7 @@ def replay(tracker, t_s, q_rad, current_a, voltage_v=None) -> list:
         A[absent] = 0.0  # an absent joint's equation as a zero row: it adds nothing
         y[absent] = 0.0
         rows.set_chunk(c0, A, y)
-        for method in methods:
-            method.run(rows, c0, c1)
+        run_together(methods, rows, c0, c1)
     for method in methods:
         method.finish()
     tk.used = len(rows_k)

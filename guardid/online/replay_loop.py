@@ -2,16 +2,19 @@
 used rows at a time.
 
 Each method (RLS, the windowed Hopfield network) runs on its own: the tracker's methods
-share only the rows. While its change detector is armed (neither learning a reference nor
-settling after a change) and the method takes rows, a block of up to :data:`BLOCK` rows goes
-through a fast path, else rows go one by one through the estimator and detector objects
+share only the rows and what is formed from the rows alone (each block's information).
+While its change detector is armed (neither learning a reference nor settling after a
+change) and the method takes rows, a block of up to :data:`BLOCK` rows goes through a fast
+path, else rows go one by one through the estimator and detector objects
 exactly as :meth:`OnlineIdentifier._use_row` feeds them (the first holdoff and reference
 seconds, and the seconds after a detected change).
 
 The fast path, per block (joint equations of absent joints as zero rows, which add nothing):
 
 - the information W_k = lam W_{k-1} + A_k^T A_k + (1 - lam) F of both estimators (RLS's
-  R = P^-1, the Hopfield network's weights) for all rows at once (one ``lfilter``);
+  R = P^-1, the Hopfield network's weights) for all rows at once: the data's part (one
+  ``lfilter`` from zero) once per block for every method on the fast path over it, the
+  start's part lam^(k+1) W_0 per method (the methods advance block by block together);
 - RLS: the gains K_k = (lam R_{k-1} + A_k^T A_k)^-1 A_k^T by one batched solve, then
   theta_k = (I - K_k A_k) theta_{k-1} + K_k y_k by running products of 32 rows at a time
   for all such runs at once (:func:`_product_scan`): the covariance-form update of
@@ -21,7 +24,7 @@ The fast path, per block (joint equations of absent joints as zero rows, which a
   (M = D^-1 + g S mean(W) S), each row keeping its own force at the step's start
   g S (b_j - W_j theta_0), so the rows' linearly implicit steps, with the biases' share of
   the state (psi below), are one affine recursion z_j = H z_(j-1) + x_j in z = [s; psi]:
-  one Cholesky solve and log2(16) products a step (:func:`_affine_scan`); the
+  one Cholesky solve and log2(16) products a step (:func:`_affine_scan_rows`); the
   fraction-to-boundary rule is applied to the step. With 1 row a step this is the live
   network's step (to round-off: the reference in tests/test_online_replay.py); with 16 the
   estimates stay within 2 % of each parameter's scale (largest |estimate|) of the live ones
@@ -63,10 +66,29 @@ class Rows:
     def __init__(self, t, ok):
         self.t, self.ok = t, ok
         self._chunks = []
+        self._info = {}
 
     def set_chunk(self, c0, A, y):
         self._chunks = [*self._chunks[-1:], (c0, A, y)]
         self.c0, self.A, self.y = c0, A, y
+        self._info = {}
+
+    def information(self, i0, i1, lam, f):
+        """(A^T A (L, p, p), the information the rows i0 .. i1 - 1 add from zero
+        sum_(i<=k) lam^(k-i) (A_i^T A_i + F') (L, p, p), lam^(k+1) (L,)) with F' = diag(f):
+        what every method's information over the block is made of (W_k = that + lam^(k+1)
+        W_0), formed once for all the methods on the fast path over the same block."""
+        key = (i0, i1, lam, f.tobytes())
+        if key not in self._info:
+            A = self.A[i0 - self.c0 : i1 - self.c0]
+            L, _, p = A.shape
+            AtA = A.transpose(0, 2, 1) @ A
+            Q = AtA.reshape(L, p * p).copy()
+            Q[:, :: p + 1] += f
+            data = lfilter([1.0], [1.0, -lam], Q, axis=0)
+            powers = lam ** np.arange(1, L + 1, dtype=float)
+            self._info = {key: (AtA, data.reshape(L, p, p), powers)}
+        return self._info[key]
 
     def row(self, i):
         """(A (m, b), y (m,)) of row ``i`` as the live tracker forms them (present joints)."""
@@ -109,19 +131,17 @@ class MethodReplay:
         self.f = (1.0 - lam) * floor  # the information added per row by the floor (p,)
 
     # -- driving ----------------------------------------------------------------------------
-    def run(self, rows: Rows, i0: int, i1: int) -> None:
-        """Rows i0 .. i1 - 1 (within the current chunk of ``rows``)."""
-        i = i0
-        while i < i1:
-            if self._fast_ok(float(rows.t[i])):
-                if self.fast is None:
-                    self._load()
-                i = self._block(rows, i, min(i + BLOCK, i1))
-            else:
-                if self.fast is not None:
-                    self._store()
-                self._slow(rows, i)
-                i += 1
+    def advance(self, rows: Rows, i: int, i1: int) -> int:
+        """Row ``i`` on the slow path or a fast block from it (up to :data:`BLOCK` rows, not
+        past ``i1``); returns the next row."""
+        if self._fast_ok(float(rows.t[i])):
+            if self.fast is None:
+                self._load()
+            return self._block(rows, i, min(i + BLOCK, i1))
+        if self.fast is not None:
+            self._store()
+        self._slow(rows, i)
+        return i + 1
 
     def finish(self) -> None:
         if self.fast is not None:
@@ -193,14 +213,11 @@ class MethodReplay:
         c0 = rows.c0
         A = rows.A[i0 - c0 : i1 - c0]
         y = rows.y[i0 - c0 : i1 - c0]
-        L, n, p = A.shape
+        L = len(A)
         AT = A.transpose(0, 2, 1)
-        AtA = AT @ A
-        Q = AtA.reshape(L, p * p).copy()
-        Q[:, :: p + 1] += self.f
+        AtA, data, powers = rows.information(i0, i1, lam, self.f)
         W0 = st["W"]
-        Wf = lfilter([1.0], [1.0, -lam], Q, axis=0, zi=(lam * W0).reshape(1, p * p))[0]
-        W = Wf.reshape(L, p, p)
+        W = data + powers[:, None, None] * W0
         if self.kind == "rls":
             prior, post = self._rls(W, W0, AtA, A, AT, y)
         else:
@@ -280,10 +297,18 @@ class MethodReplay:
         starts = np.arange(0, L, K)
         counts = np.diff(np.append(starts, L))
         gS = g * S
-        Gs = gS[None, :, None] * np.add.reduceat(W, starts, axis=0) * S[None, None, :]
+        GW = gS[None, :, None] * W * S[None, None, :]  # g S W_j S per row
+        Gs = np.add.reduceat(GW, starts, axis=0)
         Gs /= counts[:, None, None]  # g S mean(W) S per step
-        rT = np.asfortranarray((gS * (Bd + f * phc - W @ c)).T)  # the biases' known part
+        # each row's own force at the step's start, g S (b_j - W_j theta_0), and the mean
+        # weights' response to the state's change since: r_j = g S (b_j - W_j c)
+        # + (g S mean(W) S - g S W_j S) s_0
+        dev = np.repeat(Gs, counts, axis=0)
+        dev -= GW
+        del GW
+        r = gS * (Bd + f * phc - W @ c)  # the biases' known part (L, p)
         gSf = gS * f
+        gSfS, lam_gSf = gSf * S, lam * gSf
         eye = np.eye(p)
         # per row j of a step, z = [s; psi]: psi_j = lam psi_(j-1) + S s_(j-1) and
         # M s_j = D^-1 s_(j-1) + r_j + g S f psi_j (the linearly implicit step), so
@@ -291,35 +316,33 @@ class MethodReplay:
         H = np.zeros((2 * p, 2 * p))
         H[p:, :p] = np.diag(S)
         H[p:, p:] = lam * eye
-        X = np.zeros((2 * p, K))
         z = np.concatenate([st["s"], np.zeros(p)])
         post = np.empty((L, 2 * p))  # z after each row
+        U = np.zeros((K + 1, 2 * p))  # the affine scan's [z_0; x_1 .. x_cnt], rows
         bound = float(np.abs(z[:p]).max())
-        diag = np.arange(p)
         k0 = 0
         for m, cnt in enumerate(counts.tolist()):
             s = z[:p]
             M = Gs[m]
-            # each row's own force at the step's start, g S (b_j - W_j theta_0), and the
-            # mean weights' response to the state's change since: r_j = g S (b_j - W_j c)
-            # - g S W_j S s_0 + g S mean(W) S s_0
-            B = np.empty((p, cnt + p), order="F")
-            B[:, :cnt] = rT[:, k0 : k0 + cnt]
-            B[:, :cnt] -= gS[:, None] * (W[k0 : k0 + cnt] @ (S * s)).T
-            B[:, :cnt] += M.dot(s)[:, None]
+            Bt = np.empty((cnt + p, p))  # [r_j ..; I] as rows: B = Bt.T, Fortran order
+            np.matmul(dev[k0 : k0 + cnt], s, out=Bt[:cnt])
+            Bt[:cnt] += r[k0 : k0 + cnt]
+            Bt[cnt:] = eye
             Dinv = 1.0 / (1.0 - s * s)
-            M[diag, diag] += Dinv
-            B[:, cnt:] = eye
-            _, B, info = dposv(M, B, overwrite_a=1, overwrite_b=1)
+            M.reshape(-1)[:: p + 1] += Dinv
+            _, B, info = dposv(M, Bt.T, overwrite_a=1, overwrite_b=1)
             if info != 0:  # not positive definite by round-off (as the estimator does)
                 M = Gs[m].copy()  # D^-1 already added
-                B = np.linalg.solve(M, np.concatenate([B[:, :cnt], eye], axis=1))
+                B = np.linalg.solve(M, np.concatenate([Bt[:cnt].T, eye], axis=1))
             Minv = B[:, cnt:]
-            H[:p, :p] = Minv * (Dinv + gSf * S)[None, :]
-            H[:p, p:] = Minv * (lam * gSf)[None, :]
-            X[:p, :cnt] = B[:, :cnt]
+            np.multiply(Minv, Dinv + gSfS, out=H[:p, :p])
+            np.multiply(Minv, lam_gSf, out=H[:p, p:])
             part = post[k0 : k0 + cnt]
-            part[:] = _affine_scan(H, z, X[:, :cnt]).T
+            Um = U[: cnt + 1]
+            Um[0] = z
+            Um[1:, :p] = B[:, :cnt].T
+            Um[1:, p:] = 0.0
+            part[:] = _affine_scan_rows(H, Um)
             ds = part[-1, :p] - s
             step = sqrt(ds.dot(ds))
             if bound < 0.99 and step < _TAU * (1.0 - bound):
@@ -352,21 +375,32 @@ class MethodReplay:
         return self._Bd[i] + self.f * (self._phc[i] + self._psi[i])
 
 
-def _affine_scan(R, x0, X):
-    """(p, m): the states x_j = R x_(j-1) + X[:, j - 1], j = 1 .. m, from x0 (p,), for R (p,
-    p) and X (p, m), by recursive doubling (log2(m + 1) products instead of m)."""
-    p, m = X.shape
-    U = np.empty((p, m + 1))
-    U[:, 0] = x0
-    U[:, 1:] = X
-    P = R
+def run_together(methods, rows: Rows, i0: int, i1: int) -> None:
+    """Rows i0 .. i1 - 1 through every method, the one furthest behind advanced first
+    (:meth:`MethodReplay.advance`): each method takes the same blocks as on its own, and
+    methods on the fast path over the same block share its information
+    (:meth:`Rows.information`)."""
+    at = [i0] * len(methods)
+    while True:
+        k = min(range(len(methods)), key=at.__getitem__)
+        if at[k] >= i1:
+            return
+        at[k] = methods[k].advance(rows, at[k], i1)
+
+
+def _affine_scan_rows(R, U):
+    """(m, q): the states x_j = R x_(j-1) + u_j, j = 1 .. m, from U (m + 1, q) = [x_0; u_1;
+    .. u_m] as rows (U is overwritten), by recursive doubling (log2(m + 1) products instead
+    of m)."""
+    m = len(U) - 1
+    PT = R.T
     shift = 1
     while shift <= m:
-        U[:, shift:] += P @ U[:, : m + 1 - shift]
+        U[shift:] += U[: m + 1 - shift] @ PT
         shift *= 2
         if shift <= m:
-            P = P @ P
-    return U[:, 1:]
+            PT = PT @ PT
+    return U[1:]
 
 
 SCAN_ROWS = 32
