@@ -167,9 +167,11 @@ def capture(
         _configure(session, description)
         while legs.rows is not None:
             try:
-                # run-ahead unless a row's answer (--until-std) may end the run at its tick
+                # run-ahead unless a row's answer (--until-std) may end the run at its
+                # tick, or a caller's work on each row (on_row) may take the robot's time
+                ahead = until is None and on_row is None
                 track = session.track(legs.rows, feedforward=feedforward is not None,
-                                      run_ahead=until is None)  # fmt: skip
+                                      run_ahead=ahead)  # fmt: skip
                 for index, t in track:
                     legs.last_tick = t.tick
                     index += legs.resume_at - legs.lead  # the trajectory's row
