@@ -206,7 +206,8 @@ class GuardedPlant(Plant):
                     "no-load speed",
                     self._tick * self.dt,
                 )
-        return self._measure(*parts)[:3]
+        self.reading = self._measure(*parts)[:3]
+        return self.reading
 
 
 def runaway_speeds(description) -> np.ndarray:
@@ -260,8 +261,11 @@ def start_integral(pid, sp_counts, counts, next_mv) -> int:
 
 
 def simulate(description, model, theta, ticks, setpoint_rad, q0_rad, qd0, u0_v=None,
-             following=None):  # fmt: skip
-    """Joint positions [rad] (N, n) of the closed loop at the log's ``ticks`` (N,).
+             following=None, sensors=False):  # fmt: skip
+    """Joint positions [rad] (N, n) of the closed loop at the log's ``ticks`` (N,); with
+    ``sensors``: (positions, encoder counts (N, n), period-mean voltage [V] and current [A]
+    (N, n) as the firmware reads them, each row the period ending at its tick; the first
+    row's voltage and current NaN: its period is before the simulation).
 
     ``theta`` (b,): every base parameter of ``model``; ``setpoint_rad`` (N, n): the log's
     setpoints (held over unlogged ticks); the simulation starts at the first row from
@@ -308,6 +312,9 @@ def simulate(description, model, theta, ticks, setpoint_rad, q0_rad, qd0, u0_v=N
     rel = np.asarray(ticks, dtype=np.int64) - int(ticks[0])
     out = np.empty((len(rel), len(cpr)))
     out[0] = plant.state.q
+    read = np.full((len(rel), 3, len(cpr)), np.nan) if sensors else None
+    if sensors:
+        read[0, 0] = counts0
     buffer = fw.buffer
     row = 1
     for k in range(1, int(rel[-1]) + 1):
@@ -316,5 +323,9 @@ def simulate(description, model, theta, ticks, setpoint_rad, q0_rad, qd0, u0_v=N
         fw.advance()
         if rel[row] == k:
             out[row] = plant.state.q
+            if sensors:
+                read[row] = plant.reading
             row += 1
+    if sensors:
+        return out, read[:, 0].astype(np.int64), read[:, 1], read[:, 2]
     return out
