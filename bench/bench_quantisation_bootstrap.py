@@ -84,7 +84,8 @@ def evaluate(out, name, seeds, robot, use=None) -> list[str]:
     lines = []
     per = [variants(d, use) for d in datas]
     ks = [len(d["errors"]) if use is None else use for d in datas]
-    secs = np.array([float(d["boot_s"]) for d in datas]), np.array([float(d["fit_s"]) for d in datas])
+    boot_s = np.array([float(d["boot_s"]) for d in datas])
+    fit_s = np.array([float(d["fit_s"]) for d in datas])
     for v in per[0]:
         theta = np.array([p[v][0] for p in per])
         std = np.array([p[v][1] for p in per])
@@ -92,10 +93,12 @@ def evaluate(out, name, seeds, robot, use=None) -> list[str]:
         _, text = verdict(rows, share, len(files))
         lines.append(f"{name:14s} {v:6s} {len(files):3d} seeds K={min(ks)}: {text}")
     b = np.array([d["errors"][: (use or None)].mean(0) / np.sqrt(np.diag(d["cov"])) for d in datas])
-    lines.append(f"{name:14s} replicas' bias b/std, median over logs: "
-                 + ", ".join(f"{n} {x:+.2f}" for n, x in zip(names, np.median(b, 0), strict=True)))
-    lines.append(f"{name:14s} CPU s per log: fit {np.median(secs[1]):.1f}, bootstrap "
-                 f"{np.median(secs[0]):.1f} (K={min(ks)})")  # fmt: skip
+    lines.append(
+        f"{name:14s} replicas' bias b/std, median over logs: "
+        + ", ".join(f"{n} {x:+.2f}" for n, x in zip(names, np.median(b, 0), strict=True))
+    )
+    lines.append(f"{name:14s} CPU s per log: fit {np.median(fit_s):.1f}, bootstrap "
+                 f"{np.median(boot_s):.1f} (K={min(ks)})")  # fmt: skip
     return lines
 
 

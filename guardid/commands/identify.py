@@ -406,9 +406,11 @@ def _bootstrap(result, runs, description, options, k, status, log):
 
     m = reference_method(result.results)
     k = result.results[m].settings["quantisation_bootstrap"]["replicas"]
-    return (f"{m.upper()}: less the encoder quantisation's bias, its std with the part "
-            f"that does not shrink with the log's length ({k} closed-loop replicas; "
-            "params.yaml: quantisation_bootstrap)")
+    return (
+        f"{m.upper()}: less the encoder quantisation's bias, its std with the part "
+        f"that does not shrink with the log's length ({k} closed-loop replicas; "
+        "params.yaml: quantisation_bootstrap)"
+    )
 
 
 def _consistent(result, runs, description, torque):

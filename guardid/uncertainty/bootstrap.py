@@ -71,8 +71,9 @@ class QuantisationBootstrap:
         return np.asarray(cov, dtype=float) + self.persistent + self.spread / self.replicas
 
 
-def quantisation_bootstrap(runs, description, result, method: str = "wls", options=None,
-                           identify_options=None, progress=None) -> QuantisationBootstrap:  # fmt: skip
+def quantisation_bootstrap(
+    runs, description, result, method="wls", options=None, identify_options=None, progress=None
+) -> QuantisationBootstrap:
     """The bootstrap of ``result`` (an :class:`~guardid.identify.pipeline.Identification`
     of ``runs``) for ``method``'s estimate: replicas until the bias's standard error is
     small (``options``, :class:`BootstrapOptions`), each fitted with ``identify_options``
@@ -94,8 +95,9 @@ def quantisation_bootstrap(runs, description, result, method: str = "wls", optio
     errors, covs = [], []
     for k in range(options.replicas):
         phases = rng.random((len(runs), len(description.joints)))  # of a count, per run
-        replicas = [replica_run(r, description, values, ph) for r, ph in zip(runs, phases,
-                                                                              strict=True)]  # fmt: skip
+        replicas = [
+            replica_run(r, description, values, ph) for r, ph in zip(runs, phases, strict=True)
+        ]
         own = identify(replicas, description, fit_options).results[method]
         errors.append(np.asarray(own.theta, dtype=float) - theta)
         covs.append(np.asarray(own.cov, dtype=float))
