@@ -261,11 +261,12 @@ def start_integral(pid, sp_counts, counts, next_mv) -> int:
 
 
 def simulate(description, model, theta, ticks, setpoint_rad, q0_rad, qd0, u0_v=None,
-             following=None, sensors=False):  # fmt: skip
+             following=None, sensors=False, supply=None, seed=0):  # fmt: skip
     """Joint positions [rad] (N, n) of the closed loop at the log's ``ticks`` (N,); with
     ``sensors``: (positions, encoder counts (N, n), period-mean voltage [V] and current [A]
     (N, n) as the firmware reads them, each row the period ending at its tick; the first
-    row's voltage and current NaN: its period is before the simulation).
+    row's voltage and current NaN: its period is before the simulation). ``supply``: a
+    :class:`~guardid.plant.SupplyVariation` drawn from ``seed`` (None: the nominal supply).
 
     ``theta`` (b,): every base parameter of ``model``; ``setpoint_rad`` (N, n): the log's
     setpoints (held over unlogged ticks); the simulation starts at the first row from
@@ -287,7 +288,8 @@ def simulate(description, model, theta, ticks, setpoint_rad, q0_rad, qd0, u0_v=N
     plant_desc = estimated_description(description, names, theta)
     plant = GuardedPlant(plant_desc, model=BaseDynamics(model, theta), noise=False,
                          substeps=substeps, q0=list(q0_rad), qd0=list(qd0),
-                         max_speed=runaway_speeds(description))  # fmt: skip
+                         max_speed=runaway_speeds(description), supply=supply,
+                         seed=seed)  # fmt: skip
     fw = FirmwareEmulator(description, plant)
     counts0 = list(plant.counts())
     fw.counts = list(counts0)  # the firmware has read the encoders at the first row

@@ -21,10 +21,11 @@ def simulated_values(description, names, theta) -> dict:
     return values
 
 
-def replica_run(run, description, values: dict, phase_counts):
+def replica_run(run, description, values: dict, phase_counts, ripple=0.0, seed=0):
     """``run`` simulated in closed loop with base parameters ``values`` (name -> SI value),
     its setpoints and its first row's state, started ``phase_counts`` (n,) of an encoder
-    count (in [0, 1)) above the bottom of its first count instead of the count's middle.
+    count (in [0, 1)) above the bottom of its first count instead of the count's middle;
+    ``ripple``: the supply's tick-to-tick variation (a fraction, drawn from ``seed``).
     The replica has the log's ticks, time and setpoints; its angles, counts, voltage and
     current are the simulation's (the first row's voltage and current the log's).
     NotSimulable / SimulationDiverged (GuardidError) when ``values`` cannot be simulated;
@@ -39,8 +40,12 @@ def replica_run(run, description, values: dict, phase_counts):
     cpr = counts_per_rad(description)
     q0, qd0, u0, following = start_of(run, description)
     q0 = np.asarray(q0, dtype=float) + (np.asarray(phase_counts, dtype=float) - 0.5) / cpr
+    from guardid.plant import SupplyVariation
+
+    supply = SupplyVariation(0.0, float(ripple)) if ripple else None
     _, counts, volts, amps = simulate(description, model, theta, run.ticks, run.setpoint, q0,
-                                      qd0, u0, following, sensors=True)  # fmt: skip
+                                      qd0, u0, following, sensors=True, supply=supply,
+                                      seed=seed)  # fmt: skip
     volts[0] = run.voltage[0] if run.voltage is not None else 0.0
     amps[0] = run.current[0]
     return replace(run, path=f"{run.path} (replica)", q=counts / cpr, counts=counts,
