@@ -260,6 +260,34 @@ def start_integral(pid, sp_counts, counts, next_mv) -> int:
     return int(max(-lim, min(lim, round(i0))))
 
 
+def started_firmware(description, plant, setpoint_rad, u0_v=None, following=None):
+    """(firmware, setpoints [counts] (N, n), first counts, u0 [V] (n,)): the firmware
+    emulator over ``plant`` in position mode at a log's first row, its PID's integral set
+    from ``u0_v`` or ``following`` (see :func:`simulate`)."""
+    fw = FirmwareEmulator(description, plant)
+    counts0 = list(plant.counts())
+    fw.counts = list(counts0)  # the firmware has read the encoders at the first row
+    fw.receive(Encoder().encode(M["SET_MODE"](ENUMS["mode"]["position"])))
+    fw.take_output()
+    fw.watchdog_ms = 1 << 62  # no host in the loop
+    cpr = np.array(fw.cpr, dtype=float)
+    sp = np.rint(np.asarray(setpoint_rad, dtype=float) * cpr / (2 * math.pi)).astype(np.int64)
+    fw.setpoint = sp[0].tolist()  # held until the next logged setpoint (lost rows between)
+    u0 = np.zeros(len(cpr)) if u0_v is None else np.asarray(u0_v, dtype=float)
+    for j, pid in enumerate(fw.pids):
+        e0 = int(sp[0, j]) - int(counts0[j])
+        mv = max(-pid.limit_mv, min(pid.limit_mv, int(round(1000.0 * u0[j]))))
+        lim = pid.limit_mv << 16
+        pid.integral = max(-lim, min(lim, (mv << 16) - pid.kp * e0))
+        if following is not None:
+            k = len(following[0])
+            fitted = start_integral(pid, sp[:k, j], following[0][:, j], 1000.0 * following[1][:, j])
+            pid.integral = pid.integral if fitted is None else fitted
+        pid.prev_error = e0
+        fw.applied_mv[j] = mv
+    return fw, sp, counts0, u0
+
+
 def simulate(description, model, theta, ticks, setpoint_rad, q0_rad, qd0, u0_v=None,
              following=None, sensors=False, supply=None, seed=0):  # fmt: skip
     """Joint positions [rad] (N, n) of the closed loop at the log's ``ticks`` (N,); with
@@ -290,27 +318,8 @@ def simulate(description, model, theta, ticks, setpoint_rad, q0_rad, qd0, u0_v=N
                          substeps=substeps, q0=list(q0_rad), qd0=list(qd0),
                          max_speed=runaway_speeds(description), supply=supply,
                          seed=seed)  # fmt: skip
-    fw = FirmwareEmulator(description, plant)
-    counts0 = list(plant.counts())
-    fw.counts = list(counts0)  # the firmware has read the encoders at the first row
-    fw.receive(Encoder().encode(M["SET_MODE"](ENUMS["mode"]["position"])))
-    fw.take_output()
-    fw.watchdog_ms = 1 << 62  # no host in the loop
+    fw, sp, counts0, u0 = started_firmware(description, plant, setpoint_rad, u0_v, following)
     cpr = np.array(fw.cpr, dtype=float)
-    sp = np.rint(np.asarray(setpoint_rad, dtype=float) * cpr / (2 * math.pi)).astype(np.int64)
-    fw.setpoint = sp[0].tolist()  # held until the next logged setpoint (lost rows between)
-    u0 = np.zeros(len(cpr)) if u0_v is None else np.asarray(u0_v, dtype=float)
-    for j, pid in enumerate(fw.pids):
-        e0 = int(sp[0, j]) - int(counts0[j])
-        mv = max(-pid.limit_mv, min(pid.limit_mv, int(round(1000.0 * u0[j]))))
-        lim = pid.limit_mv << 16
-        pid.integral = max(-lim, min(lim, (mv << 16) - pid.kp * e0))
-        if following is not None:
-            k = len(following[0])
-            fitted = start_integral(pid, sp[:k, j], following[0][:, j], 1000.0 * following[1][:, j])
-            pid.integral = pid.integral if fitted is None else fitted
-        pid.prev_error = e0
-        fw.applied_mv[j] = mv
     rel = np.asarray(ticks, dtype=np.int64) - int(ticks[0])
     out = np.empty((len(rel), len(cpr)))
     out[0] = plant.state.q

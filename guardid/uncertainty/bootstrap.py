@@ -1,6 +1,8 @@
 """The parametric bootstrap of the quantisation through the closed loop: K replicas of the
 runs (:func:`~guardid.uncertainty.replicas.replica_run`, each from its own sub-count start
-pose), each fitted as the runs were, their errors against the simulated parameters.
+pose, on the supply level and ripple measured from the run,
+:func:`~guardid.uncertainty.supply.measured_supply`), each fitted as the runs were, their
+errors against the simulated parameters.
 
 Mean error ``bias`` (b,) is the quantisation's bias; the covariance of the errors less the
 mean covariance the fit reports on them (the part the residuals see, already in the run's
@@ -84,6 +86,7 @@ def quantisation_bootstrap(
     the estimate cannot be simulated."""
     from guardid.identify.pipeline import IdentifyOptions, identify
     from guardid.uncertainty.replicas import replica_run, simulated_values
+    from guardid.uncertainty.supply import measured_supply
 
     options = options or BootstrapOptions()
     fit = result.results[method]
@@ -92,12 +95,13 @@ def quantisation_bootstrap(
     base = identify_options or IdentifyOptions()
     fit_options = replace(base, methods=(method,), conditioning=result.conditioning)
     rng = np.random.default_rng(options.seed)
+    supplies = [measured_supply(r, description) for r in runs]
     errors, covs = [], []
     for k in range(options.replicas):
         phases = rng.random((len(runs), len(description.joints)))  # of a count, per run
-        replicas = [
-            replica_run(r, description, values, ph) for r, ph in zip(runs, phases, strict=True)
-        ]
+        seeds = rng.integers(0, 2**31, len(runs))
+        replicas = [replica_run(r, description, values, ph, s, int(z))
+                    for r, ph, s, z in zip(runs, phases, supplies, seeds, strict=True)]  # fmt: skip
         own = identify(replicas, description, fit_options).results[method]
         errors.append(np.asarray(own.theta, dtype=float) - theta)
         covs.append(np.asarray(own.cov, dtype=float))

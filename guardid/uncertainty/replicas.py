@@ -21,11 +21,12 @@ def simulated_values(description, names, theta) -> dict:
     return values
 
 
-def replica_run(run, description, values: dict, phase_counts, ripple=0.0, seed=0):
+def replica_run(run, description, values: dict, phase_counts, supply=None, seed=0):
     """``run`` simulated in closed loop with base parameters ``values`` (name -> SI value),
     its setpoints and its first row's state, started ``phase_counts`` (n,) of an encoder
     count (in [0, 1)) above the bottom of its first count instead of the count's middle;
-    ``ripple``: the supply's tick-to-tick variation (a fraction, drawn from ``seed``).
+    ``supply``: the motors' supply (:class:`~guardid.uncertainty.supply.MeasuredSupply`,
+    its ripple drawn from ``seed``; None: nominal).
     The replica has the log's ticks, time and setpoints; its angles, counts, voltage and
     current are the simulation's (the first row's voltage and current the log's).
     NotSimulable / SimulationDiverged (GuardidError) when ``values`` cannot be simulated;
@@ -40,9 +41,6 @@ def replica_run(run, description, values: dict, phase_counts, ripple=0.0, seed=0
     cpr = counts_per_rad(description)
     q0, qd0, u0, following = start_of(run, description)
     q0 = np.asarray(q0, dtype=float) + (np.asarray(phase_counts, dtype=float) - 0.5) / cpr
-    from guardid.plant import SupplyVariation
-
-    supply = SupplyVariation(0.0, float(ripple)) if ripple else None
     _, counts, volts, amps = simulate(description, model, theta, run.ticks, run.setpoint, q0,
                                       qd0, u0, following, sensors=True, supply=supply,
                                       seed=seed)  # fmt: skip
