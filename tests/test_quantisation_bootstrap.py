@@ -53,10 +53,11 @@ def test_known_bias_through_the_fit(gap_guard_captures, monkeypatch):
     theta = result.results["wls"].theta
     scales = iter([0.02, 0.06, -0.01])
 
-    def scaled(r, description, values, phase):
+    def scaled(r, description, values, phase, supply, seed):
         simulated = [values[n] for n in result.names]
         assert simulated == pytest.approx(theta)  # simulated with the estimate
         assert np.all((0.0 <= phase) & (phase < 1.0))
+        assert supply.ripple < 0.005  # the capture's supply has no ripple
         return replace(r, current=r.current * (1.0 + next(scales)))
 
     monkeypatch.setattr(replicas_module, "replica_run", scaled)
@@ -129,3 +130,25 @@ def test_identify_bootstrap_cannot_run_one_line(gap_guard_captures, tmp_path):
         assert len(lines) == 1 and "cannot run" in lines[0] and why in lines[0]
         assert "Traceback" not in res.stderr
         assert "quantisation_bootstrap" not in yaml.safe_load(out.read_text())["methods"]["wls"]
+
+
+def test_supply_measured_from_the_log(tmp_path, noise_free_replay):
+    """The supply's level and ripple that ``sim://guard?supply=F&ripple=R`` drew (by hand
+    from its documented stream: random.Random('supply-SEED'), level 1 + uniform(-F, F))
+    are found in the log; a capture on the nominal supply has level 1 and no ripple."""
+    import random
+
+    from guardid.identify.runs import load_run
+    from guardid.uncertainty.supply import measured_supply
+
+    log = tmp_path / "ripple.csv"
+    res = invoke("capture", "--port", "sim://guard?seed=3&supply=0.05&ripple=0.02",
+                 "--trajectory", noise_free_replay["traj"], "--duration", 8, "--quiet", "-o",
+                 log)  # fmt: skip
+    assert res.exit_code == 0, res.output
+    level = 1.0 + random.Random("supply-3").uniform(-0.05, 0.05)
+    found = measured_supply(load_run(log), GUARD)
+    assert found.level == pytest.approx(level, abs=0.003)
+    assert found.ripple == pytest.approx(0.02, rel=0.15)
+    nominal = measured_supply(load_run(noise_free_replay["yaml"]), GUARD)
+    assert nominal.level == pytest.approx(1.0, abs=0.003) and nominal.ripple < 0.003

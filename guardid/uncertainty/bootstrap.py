@@ -88,6 +88,10 @@ def quantisation_bootstrap(
     from guardid.uncertainty.replicas import replica_run, simulated_values
     from guardid.uncertainty.supply import measured_supply
 
+    from guardid.replay import check_replayable
+
+    for run in runs:  # one line before any work: setpoints, ticks, pid: gains
+        check_replayable(run, description, "replica")
     options = options or BootstrapOptions()
     fit = result.results[method]
     theta, std = np.asarray(fit.theta, dtype=float), np.asarray(fit.std, dtype=float)

@@ -56,12 +56,12 @@ def commanded_volts(run, description) -> np.ndarray:
     first rows of ``run`` one tick apart (before the supply's factor), by its PID on the
     log's counts and setpoints."""
     from guardid.closedloop.simulate import started_firmware
-    from guardid.replay import start_of
+    from guardid.replay import counts_per_rad, start_of
 
     ticks = np.asarray(run.ticks, dtype=np.int64)
     steps = np.flatnonzero(np.diff(ticks) != 1)
     end = int(steps[0]) + 1 if steps.size else len(ticks)  # the first stretch without gaps
-    counts = np.asarray(run.counts[:end], dtype=np.int64)
+    counts = np.rint(np.asarray(run.q[:end]) * counts_per_rad(description)).astype(np.int64)
     _, _, u0, following = start_of(run, description)
     plant = _LogPlant(counts, run.voltage[:end], run.current[:end])
     fw, sp, _, _ = started_firmware(description, plant, run.setpoint[:end], u0, following)
