@@ -85,10 +85,9 @@ def quantisation_bootstrap(
     ConfigError when a run has no setpoints or the robot no ``pid:``; GuardidError when
     the estimate cannot be simulated."""
     from guardid.identify.pipeline import IdentifyOptions, identify
+    from guardid.replay import check_replayable
     from guardid.uncertainty.replicas import replica_run, simulated_values
     from guardid.uncertainty.supply import measured_supply
-
-    from guardid.replay import check_replayable
 
     for run in runs:  # one line before any work: setpoints, ticks, pid: gains
         check_replayable(run, description, "replica")
