@@ -131,13 +131,15 @@ _CONSISTENT_HELP = (
 _BOOTSTRAP_HELP = (
     "Size the encoder quantisation's effect through the closed loop from the run itself: "
     "simulate the log's closed loop (its setpoints, the robot YAML's PID, motors and "
-    "friction) with the identified parameters up to K times from start poses a fraction "
-    "of a count apart, fit each replica as the log was, and report the verdict's method "
+    "friction, the supply level and ripple measured from its voltages) with the identified "
+    "parameters up to K times from start poses a fraction of a count apart, fit each "
+    "replica as the log was, and report the verdict's method "
     "(WLS, else LS) as estimate - the replicas' mean error with its std widened by the "
     "part of their spread the residuals do not see (docs/quantisation_bootstrap.md). "
-    "Stops early once the bias is known to 0.25 std. Costs K closed-loop simulations of "
-    "the log (about 90 us of CPU per tick each). Needs a guardid log with setpoints and "
-    "pid: gains; otherwise one warning line and the plain estimate. [default: 0, off]"
+    "Stops early once the bias is known to 0.25 std (at least 4 replicas). Costs K "
+    "closed-loop simulations of the log (about 55 us of CPU per tick each: 9x identify's "
+    "CPU on a 1 h log at K = 4). Needs a guardid log with setpoints and pid: gains; "
+    "otherwise one warning line and the plain estimate. [default: 0, off]"
 )
 
 _POSITIVE = POSITIVE
