@@ -187,6 +187,7 @@ ROWS = [
     ("identify-cutoff-0", "identify {run} --cutoff 0", 2, ["--cutoff"]),
     ("identify-cutoff-above-nyquist", "identify {run} --cutoff 1e9", 2, ["--cutoff", "run.csv", "Nyquist"]),
     ("identify-lam-0", "identify {run} --lam 0", 2, ["--lam"]),
+    ("identify-bootstrap-negative", "identify {run} --quantisation-bootstrap -1", 2, ["--quantisation-bootstrap"]),
     ("identify-eta-nan", "identify {run} --method gradient --eta nan", 2, ["--eta"]),
     ("validate-no-params", "validate {run}", 2, ["--params"]),
     ("unknown-command", "identfy {run}", 2, ["identfy"]),

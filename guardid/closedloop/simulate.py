@@ -206,7 +206,8 @@ class GuardedPlant(Plant):
                     "no-load speed",
                     self._tick * self.dt,
                 )
-        return self._measure(*parts)[:3]
+        self.reading = self._measure(*parts)[:3]
+        return self.reading
 
 
 def runaway_speeds(description) -> np.ndarray:
@@ -259,31 +260,10 @@ def start_integral(pid, sp_counts, counts, next_mv) -> int:
     return int(max(-lim, min(lim, round(i0))))
 
 
-def simulate(description, model, theta, ticks, setpoint_rad, q0_rad, qd0, u0_v=None,
-             following=None):  # fmt: skip
-    """Joint positions [rad] (N, n) of the closed loop at the log's ``ticks`` (N,).
-
-    ``theta`` (b,): every base parameter of ``model``; ``setpoint_rad`` (N, n): the log's
-    setpoints (held over unlogged ticks); the simulation starts at the first row from
-    ``q0_rad`` (n,) [rad] and ``qd0`` (n,) [rad/s] with the PID's last output ``u0_v`` (n,)
-    [V] (the voltage the log reports for the next period; its integral is set to give it,
-    neglecting the derivative term, unless ``following`` is given).
-    ``following``: (counts (K, n), next_v (K, n) [V]) of the log's first K rows (consecutive
-    ticks): the integral is then :func:`start_integral`'s, which keeps the derivative term.
-
-    NotSimulable before any step when ``theta`` is not a physical robot's where the motion
-    goes (:func:`stiffness_substeps` at the setpoints and the start); SimulationDiverged
-    (with its time) when the state turns non-finite or runs away, before the simulated
-    sensors read it.
-    """
-    check_simulable(description)
-    names = tuple(model.base.names)
-    visited = np.vstack([np.asarray(setpoint_rad, dtype=float), np.asarray(q0_rad, dtype=float)])
-    substeps = stiffness_substeps(description, model, theta, visited)
-    plant_desc = estimated_description(description, names, theta)
-    plant = GuardedPlant(plant_desc, model=BaseDynamics(model, theta), noise=False,
-                         substeps=substeps, q0=list(q0_rad), qd0=list(qd0),
-                         max_speed=runaway_speeds(description))  # fmt: skip
+def started_firmware(description, plant, setpoint_rad, u0_v=None, following=None):
+    """(firmware, setpoints [counts] (N, n), first counts, u0 [V] (n,)): the firmware
+    emulator over ``plant`` in position mode at a log's first row, its PID's integral set
+    from ``u0_v`` or ``following`` (see :func:`simulate`)."""
     fw = FirmwareEmulator(description, plant)
     counts0 = list(plant.counts())
     fw.counts = list(counts0)  # the firmware has read the encoders at the first row
@@ -305,9 +285,47 @@ def simulate(description, model, theta, ticks, setpoint_rad, q0_rad, qd0, u0_v=N
             pid.integral = pid.integral if fitted is None else fitted
         pid.prev_error = e0
         fw.applied_mv[j] = mv
+    return fw, sp, counts0, u0
+
+
+def simulate(description, model, theta, ticks, setpoint_rad, q0_rad, qd0, u0_v=None,
+             following=None, sensors=False, supply=None, seed=0):  # fmt: skip
+    """Joint positions [rad] (N, n) of the closed loop at the log's ``ticks`` (N,); with
+    ``sensors``: (positions, encoder counts (N, n), period-mean voltage [V] and current [A]
+    (N, n) as the firmware reads them, each row the period ending at its tick; the first
+    row's voltage and current NaN: its period is before the simulation). ``supply``: a
+    :class:`~guardid.plant.SupplyVariation` drawn from ``seed`` (None: the nominal supply).
+
+    ``theta`` (b,): every base parameter of ``model``; ``setpoint_rad`` (N, n): the log's
+    setpoints (held over unlogged ticks); the simulation starts at the first row from
+    ``q0_rad`` (n,) [rad] and ``qd0`` (n,) [rad/s] with the PID's last output ``u0_v`` (n,)
+    [V] (the voltage the log reports for the next period; its integral is set to give it,
+    neglecting the derivative term, unless ``following`` is given).
+    ``following``: (counts (K, n), next_v (K, n) [V]) of the log's first K rows (consecutive
+    ticks): the integral is then :func:`start_integral`'s, which keeps the derivative term.
+
+    NotSimulable before any step when ``theta`` is not a physical robot's where the motion
+    goes (:func:`stiffness_substeps` at the setpoints and the start); SimulationDiverged
+    (with its time) when the state turns non-finite or runs away, before the simulated
+    sensors read it.
+    """
+    check_simulable(description)
+    names = tuple(model.base.names)
+    visited = np.vstack([np.asarray(setpoint_rad, dtype=float), np.asarray(q0_rad, dtype=float)])
+    substeps = stiffness_substeps(description, model, theta, visited)
+    plant_desc = estimated_description(description, names, theta)
+    plant = GuardedPlant(plant_desc, model=BaseDynamics(model, theta), noise=False,
+                         substeps=substeps, q0=list(q0_rad), qd0=list(qd0),
+                         max_speed=runaway_speeds(description), supply=supply,
+                         seed=seed)  # fmt: skip
+    fw, sp, counts0, u0 = started_firmware(description, plant, setpoint_rad, u0_v, following)
+    cpr = np.array(fw.cpr, dtype=float)
     rel = np.asarray(ticks, dtype=np.int64) - int(ticks[0])
     out = np.empty((len(rel), len(cpr)))
     out[0] = plant.state.q
+    read = np.full((len(rel), 3, len(cpr)), np.nan) if sensors else None
+    if sensors:
+        read[0, 0] = counts0
     buffer = fw.buffer
     row = 1
     for k in range(1, int(rel[-1]) + 1):
@@ -316,5 +334,9 @@ def simulate(description, model, theta, ticks, setpoint_rad, q0_rad, qd0, u0_v=N
         fw.advance()
         if rel[row] == k:
             out[row] = plant.state.q
+            if sensors:
+                read[row] = plant.reading
             row += 1
+    if sensors:
+        return out, read[:, 0].astype(np.int64), read[:, 1], read[:, 2]
     return out

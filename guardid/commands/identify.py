@@ -83,19 +83,21 @@ def _load_all(logs, robot_opt, foreign):
     return runs, description
 
 
-def _lean(run, description, methods, report_path):
+def _lean(run, description, methods, report_path, bootstrap=False):
     """``run`` without the columns this identify will not read, so they do not stay in
     memory (about 8 MB per hour of log and per column pair): ``counts`` once the log's
     joints are in the robot's order (they serve only to check the angles when the
     columns are reordered, :func:`~guardid.identify.pipeline.prepared_runs`), ``setpoint``
-    unless a closed-loop method (iv, didim) or the --report's replay uses it."""
+    unless a closed-loop method (iv, didim), the --report's replay or the quantisation
+    bootstrap uses it."""
     from dataclasses import replace
 
     joints = getattr(description, "joints", None)
     drop = {}
     if joints is not None and run.joint_names == tuple(j.name for j in joints):
         drop["counts"] = None
-    if report_path is None and not {"iv", "didim"} & {m.lower() for m in methods}:
+    closed_loop = bootstrap or {"iv", "didim"} & {m.lower() for m in methods}
+    if report_path is None and not closed_loop:
         drop["setpoint"] = None
     return replace(run, **drop) if drop else run
 
@@ -125,6 +127,20 @@ _CONSISTENT_HELP = (
     "which `guardid export` turns into URDF / MJCF (docs/CONSISTENT.md)."
 )
 
+
+_BOOTSTRAP_HELP = (
+    "Size the encoder quantisation's effect through the closed loop from the run itself: "
+    "simulate the log's closed loop (its setpoints, the robot YAML's PID, motors and "
+    "friction, the supply level and ripple measured from its voltages) with the identified "
+    "parameters up to K times from start poses a fraction of a count apart, fit each "
+    "replica as the log was, and report the verdict's method "
+    "(WLS, else LS) as estimate - the replicas' mean error with its std widened by the "
+    "part of their spread the residuals do not see (docs/quantisation_bootstrap.md). "
+    "Stops early once the bias is known to 0.25 std (at least 4 replicas). Costs K "
+    "closed-loop simulations of the log (about 55 us of CPU per tick each: 9x identify's "
+    "CPU on a 1 h log at K = 4). Needs a guardid log with setpoints and pid: gains; "
+    "otherwise one warning line and the plain estimate. [default: 0, off]"
+)
 
 _POSITIVE = POSITIVE
 
@@ -204,6 +220,10 @@ class _MethodOption(click.Option):
 @click.option("--parallel-filter", "parallel_hz", type=float, default=None, help=_PARALLEL_HELP)
 @click.option("--consistent", is_flag=True, help=_CONSISTENT_HELP)
 @click.option(
+    "--quantisation-bootstrap", "bootstrap_k", type=click.IntRange(0, 1000), default=0,
+    metavar="K", help=_BOOTSTRAP_HELP,
+)  # fmt: skip
+@click.option(
     "--cv",
     is_flag=True,
     help="Leave-one-run-out cross-validation over the LOGs (at least 2): fit on all but one, "
@@ -219,7 +239,7 @@ class _MethodOption(click.Option):
 @_foreign_options
 def identify(
     log, robot, method, cutoff, equation, beta, lam, eta, current_units, output, plot_path,
-    report_path, parallel_hz, consistent, cv, force, **foreign,
+    report_path, parallel_hz, consistent, bootstrap_k, cv, force, **foreign,
 ):  # fmt: skip
     """Identify the robot's base parameters and motor constants from LOG [LOG ...].
 
@@ -268,7 +288,7 @@ def identify(
     if cv:
         _cross_validate(logs, runs, description, options)
         return
-    runs = [_lean(r, description, methods, report_path) for r in runs]  # memory: see _lean
+    runs = [_lean(r, description, methods, report_path, bootstrap_k > 0) for r in runs]
     run = runs[0]
     forked = None  # the tracker's replay on another core while the batch fit runs
     if plot_path is None and report_path is None:
@@ -287,12 +307,16 @@ def identify(
             f"{log}: identification cannot be trusted: {'; '.join(result.untrusted)} "
             "(--force reports and writes it anyway)"
         )
+    corrected = bootstrap_k and _bootstrap(result, whole, description, options, bootstrap_k,
+                                           status, log)  # fmt: skip
     fit = None
     if consistent:
         status.stage("consistent fit")
         fit = _consistent(result, runs, description, run.torque)
     status.clear()
     click.echo(table(result, (*methods, "consistent") if fit else methods, description))
+    if corrected:
+        click.echo(corrected)
     if fit:
         from guardid.physical.report import standard_table
 
@@ -362,6 +386,33 @@ def identify(
         raise GuardidError(
             f"--consistent: the fit is not physically consistent: {fit.violations[0]}"
         )
+
+
+def _bootstrap(result, runs, description, options, k, status, log):
+    """--quantisation-bootstrap K on ``result`` (in place): the line saying what was
+    corrected, or '' and one warning line when it cannot run."""
+    from guardid.uncertainty import BootstrapOptions
+    from guardid.uncertainty.apply import apply_bootstrap
+
+    def progress(done, most, ratio):
+        se = "" if ratio != ratio else f", bias known to {ratio:.2f} std"
+        status.show(f"quantisation bootstrap: replica {done} of at most {most}{se} ...")
+
+    status.stage("quantisation bootstrap")
+    why = apply_bootstrap(result, runs, description, options, BootstrapOptions(replicas=k),
+                          progress)  # fmt: skip
+    if why:
+        click.echo(f"warning: {log}: --quantisation-bootstrap cannot run: {why}", err=True)
+        return ""
+    from guardid.identify.pipeline import reference_method
+
+    m = reference_method(result.results)
+    k = result.results[m].settings["quantisation_bootstrap"]["replicas"]
+    return (
+        f"{m.upper()}: less the encoder quantisation's bias, its std with the part "
+        f"that does not shrink with the log's length ({k} closed-loop replicas; "
+        "params.yaml: quantisation_bootstrap)"
+    )
 
 
 def _consistent(result, runs, description, torque):

@@ -124,6 +124,8 @@ def to_yaml_dict(result, description, log_path) -> dict:
         if r.output_spread is not None:  # not a std: nothing that reads "std" may take it
             entry["output_spread"] = [float(x) for x in r.output_spread]
             entry["output_spread_is"] = SPREAD_NOTE.removeprefix("MLP ~: ")
+        if "quantisation_bootstrap" in r.settings:  # guardid.uncertainty: values corrected
+            entry["quantisation_bootstrap"] = r.settings["quantisation_bootstrap"]
         if m in STD_NOT_HONEST:
             entry["std_honest"] = False
             entry["std_note"] = STD_NOT_HONEST[m]

@@ -1,0 +1,39 @@
+"""``identify --quantisation-bootstrap K``: the bootstrap applied to an identification's
+reference method (its estimate corrected, its covariance widened; the figures recorded in
+the method's settings, written to params.yaml)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from guardid.errors import GuardidError
+
+
+def apply_bootstrap(result, runs, description, identify_options, options, progress=None):
+    """Correct ``result``'s reference method (WLS, else LS) in place with the bootstrap of
+    ``runs``; '' when done, else one phrase why it cannot run (a log without setpoints, a
+    robot without ``pid:``, an estimate the closed loop cannot be simulated with)."""
+    from guardid.identify.pipeline import reference_method
+    from guardid.uncertainty.bootstrap import quantisation_bootstrap
+
+    method = reference_method(result.results)
+    if method is None or result.results[method].cov is None:
+        return "no method with a covariance (wls or ls) among --method"
+    if any(r.torque for r in runs):
+        return "the effort is measured torque, not a guardid log's motor current"
+    try:
+        bs = quantisation_bootstrap(runs, description, result, method, options,
+                                    identify_options, progress)  # fmt: skip
+    except GuardidError as exc:
+        return str(exc).removeprefix("replica: ")
+    fit = result.results[method]
+    cov = bs.covariance(fit.cov)
+    fit.theta, fit.cov = bs.corrected(fit.theta), cov
+    fit.std = np.sqrt(np.diag(cov))
+    fit.rel_std_pct = 100.0 * fit.std / np.maximum(np.abs(fit.theta), 1e-300)
+    fit.settings["quantisation_bootstrap"] = {
+        "replicas": bs.replicas,
+        "bias_removed": [float(x) for x in bs.bias],
+        "persistent_std": [float(x) for x in np.sqrt(np.diag(bs.persistent))],
+    }
+    return ""

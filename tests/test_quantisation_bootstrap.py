@@ -1,0 +1,154 @@
+"""The quantisation bootstrap (guardid.uncertainty, ``identify --quantisation-bootstrap``):
+its statistics by hand, its plumbing on replicas whose error is known from the fit's
+linearity, its replicas against a capture of the simulated robot, the command's lines."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+from badinput_tools import invoke
+
+# the guard robot, its counts per radian by hand, BLAS on one thread (an autouse fixture)
+from test_replay import COUNTS_PER_RAD, GUARD, _one_blas_thread  # noqa: F401
+
+
+def test_statistics_by_hand():
+    from guardid.uncertainty import QuantisationBootstrap
+
+    # one parameter, errors 1 and 3: mean 2, sample variance 2; the fits reported 0.5 each
+    bs = QuantisationBootstrap(("a",), np.array([10.0]), np.array([[1.0], [3.0]]),
+                               np.full((2, 1, 1), 0.5))  # fmt: skip
+    assert bs.replicas == 2
+    assert bs.bias == pytest.approx([2.0])
+    assert bs.persistent == pytest.approx(np.array([[1.5]]))  # 2 - 0.5
+    assert bs.corrected([10.0]) == pytest.approx([8.0])
+    assert bs.covariance([[1.0]]) == pytest.approx(np.array([[3.5]]))  # 1 + 1.5 + 2 / 2
+    # reported covariance larger than the spread: nothing persists (clipped at 0)
+    quiet = QuantisationBootstrap(("a",), np.array([0.0]), np.array([[1.0], [3.0]]),
+                                  np.full((2, 1, 1), 5.0))  # fmt: skip
+    assert quiet.persistent == pytest.approx(np.array([[0.0]]))
+    # two parameters, errors along (1, 1) only: the persistent part is that direction's
+    e = np.array([[1.0, 1.0], [-1.0, -1.0], [0.0, 0.0]])  # covariance [[1, 1], [1, 1]]
+    two = QuantisationBootstrap(("a", "b"), np.zeros(2), e, np.zeros((3, 2, 2)))
+    assert two.persistent == pytest.approx(np.ones((2, 2)))
+
+
+def test_known_bias_through_the_fit(gap_guard_captures, monkeypatch):
+    """Replicas = the log with its current scaled by (1 + c_k): the momentum form is linear
+    in the effort and WLS's weights scale with it, so each replica's estimate is (1 + c_k)
+    theta and its error c_k theta: the bias mean(c) theta, known without the simulation
+    (to 3 % of each error: the fit is linear in the effort to about 1 % here, measured)."""
+    from dataclasses import replace
+
+    import guardid.uncertainty.bootstrap as bootstrap_module
+    import guardid.uncertainty.replicas as replicas_module
+    from guardid.identify.pipeline import IdentifyOptions, identify
+    from guardid.identify.runs import load_run
+    from guardid.uncertainty import BootstrapOptions, quantisation_bootstrap
+
+    run = load_run(gap_guard_captures[1])
+    options = IdentifyOptions(methods=("wls",))
+    result = identify([run], GUARD, options)
+    theta = result.results["wls"].theta
+    scales = iter([0.02, 0.06, -0.01])
+
+    def scaled(r, description, values, phase, supply, seed):
+        simulated = [values[n] for n in result.names]
+        assert simulated == pytest.approx(theta)  # simulated with the estimate
+        assert np.all((0.0 <= phase) & (phase < 1.0))
+        assert supply.ripple < 0.005  # the capture's supply has no ripple
+        return replace(r, current=r.current * (1.0 + next(scales)))
+
+    monkeypatch.setattr(replicas_module, "replica_run", scaled)
+    monkeypatch.setattr(bootstrap_module, "replica_run", scaled, raising=False)
+    bs = quantisation_bootstrap([run], GUARD, result, "wls",
+                                BootstrapOptions(replicas=3, tolerance=0.0), options)  # fmt: skip
+    c = np.array([0.02, 0.06, -0.01])
+    assert bs.replicas == 3
+    np.testing.assert_allclose(bs.errors, c[:, None] * theta[None], rtol=0.03, atol=1e-9)
+    np.testing.assert_allclose(bs.bias, c.mean() * theta, rtol=0.03, atol=1e-9)
+    np.testing.assert_allclose(bs.corrected(theta), theta - bs.bias, rtol=1e-12)
+    np.testing.assert_allclose(bs.corrected(theta), (1 - c.mean()) * theta, rtol=1e-3)
+
+
+def test_replica_reproduces_a_noise_free_capture(noise_free_replay):
+    """Simulated with the robot YAML's values from the capture's own start (on the count
+    grid: phase 0), a replica's counts stay within one count of the capture's (read with
+    numpy), its angles are its counts over the counts per radian, its current follows the
+    capture's; another phase changes the counts."""
+    from guardid.identify.runs import load_run
+    from guardid.identify.validation import reference_set
+    from guardid.uncertainty import replica_run
+
+    log = noise_free_replay["yaml"]
+    run = load_run(log)
+    true = reference_set(noise_free_replay["true"], GUARD).values
+    rep = replica_run(run, GUARD, true, [0.0, 0.0])
+    lines = [x for x in log.read_text().splitlines() if not x.startswith("#")]
+    data = np.array([[float(v) for v in x.split(",")] for x in lines[1:]])
+    cols = dict(zip(lines[0].split(","), data.T, strict=True))
+    counts = np.stack([cols["counts_pan"], cols["counts_tilt"]], axis=1)
+    current = np.stack([cols["i_pan_A"], cols["i_tilt_A"]], axis=1)
+    assert np.max(np.abs(rep.counts - counts)) <= 1
+    np.testing.assert_allclose(rep.q, rep.counts / COUNTS_PER_RAD, rtol=1e-12)
+    assert np.sqrt(np.mean((rep.current - current) ** 2)) < 0.05 * np.sqrt(np.mean(current**2))
+    np.testing.assert_array_equal(rep.ticks, cols["tick"])
+    other = replica_run(run, GUARD, true, [0.7, 0.4])
+    assert np.any(other.counts != rep.counts)
+
+
+def test_identify_bootstrap_corrects_the_verdicts_method(gap_guard_captures, tmp_path):
+    log = gap_guard_captures[2]
+    plain, boot = tmp_path / "plain.yaml", tmp_path / "boot.yaml"
+    assert invoke("identify", log, "--method", "wls", "-o", plain).exit_code == 0
+    res = invoke("identify", log, "--method", "wls", "--quantisation-bootstrap", "2", "-o", boot)
+    assert res.exit_code == 0, res.stderr
+    assert "less the encoder quantisation's bias" in res.stdout
+    p, b = (yaml.safe_load(f.read_text())["methods"]["wls"] for f in (plain, boot))
+    entry = b["quantisation_bootstrap"]
+    assert entry["replicas"] == 2
+    np.testing.assert_allclose(b["values"], np.subtract(p["values"], entry["bias_removed"]),
+                               rtol=1e-9, atol=1e-12)  # fmt: skip
+    assert np.all(np.array(b["std"]) >= np.array(p["std"]))
+    assert np.any(np.array(b["std"]) > np.array(p["std"]))
+
+
+def test_identify_bootstrap_cannot_run_one_line(gap_guard_captures, tmp_path):
+    log = gap_guard_captures[3]
+    text = open(GUARD.source, encoding="utf-8").read()
+    robot = tmp_path / "guard.yaml"
+    robot.write_text("\n".join(x for x in text.splitlines() if not x.strip().startswith("pid:")))
+    foreign = ("--robot", "guard", "--columns",
+               "time=time_s,q1=q_pan_rad,q2=q_tilt_rad,i1=i_pan_A,i2=i_tilt_A")  # fmt: skip
+    for extra, why in ((foreign, "no setpoints"), (("--robot", robot), "no pid")):
+        out = tmp_path / f"p{len(extra)}.yaml"
+        res = invoke("identify", log, "--method", "wls", "--quantisation-bootstrap", "3", "-o",
+                     out, *extra)  # fmt: skip
+        assert res.exit_code == 0, res.stderr
+        lines = [x for x in res.stderr.splitlines() if "quantisation-bootstrap" in x]
+        assert len(lines) == 1 and "cannot run" in lines[0] and why in lines[0]
+        assert "Traceback" not in res.stderr
+        assert "quantisation_bootstrap" not in yaml.safe_load(out.read_text())["methods"]["wls"]
+
+
+def test_supply_measured_from_the_log(tmp_path, noise_free_replay):
+    """The supply's level and ripple that ``sim://guard?supply=F&ripple=R`` drew (by hand
+    from its documented stream: random.Random('supply-SEED'), level 1 + uniform(-F, F))
+    are found in the log; a capture on the nominal supply has level 1 and no ripple."""
+    import random
+
+    from guardid.identify.runs import load_run
+    from guardid.uncertainty.supply import measured_supply
+
+    log = tmp_path / "ripple.csv"
+    res = invoke("capture", "--port", "sim://guard?seed=3&supply=0.05&ripple=0.02",
+                 "--trajectory", noise_free_replay["traj"], "--duration", 8, "--quiet", "-o",
+                 log)  # fmt: skip
+    assert res.exit_code == 0, res.output
+    level = 1.0 + random.Random("supply-3").uniform(-0.05, 0.05)
+    found = measured_supply(load_run(log), GUARD)
+    assert found.level == pytest.approx(level, abs=0.003)
+    assert found.ripple == pytest.approx(0.02, rel=0.15)
+    nominal = measured_supply(load_run(noise_free_replay["yaml"]), GUARD)
+    assert nominal.level == pytest.approx(1.0, abs=0.003) and nominal.ripple < 0.003
