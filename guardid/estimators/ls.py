@@ -31,7 +31,11 @@ class LeastSquares(Estimator):
     def _solve_stacked(self, Aw: np.ndarray, yw: np.ndarray) -> None:
         # QR of the augmented [A y]: R_aug = [[R, z], [0, rho]], ||r|| = |rho|.
         p = Aw.shape[1]
-        Raug = qr(np.column_stack([Aw, yw]), mode="r", check_finite=False)[0]
+        aug = np.empty((Aw.shape[0], p + 1), order="F")  # LAPACK's layout: QR'd in place
+        aug[:, :p] = Aw
+        aug[:, p] = yw
+        Raug = qr(aug, mode="r", overwrite_a=True, check_finite=False)[0]
+        del aug
         self.R_ = Raug[:p, :p]
         self.z_ = Raug[:p, p]
         # an all-zero row (a joint whose equation is cut there) carries no information and
@@ -71,8 +75,11 @@ class LeastSquares(Estimator):
         self.n_samples_ = N
         w = np.ones(n) if self._w is None or self._w.shape != (n,) else self._w
         self._w = w
-        Aw = (A3 * w[None, :, None]).reshape(N * n, p)
-        yw = (y2 * w).reshape(N * n)
+        if np.all(w == 1.0):  # x 1 changes no bit: no weighted copy (memory of long runs)
+            Aw, yw = A3.reshape(N * n, p), y2.reshape(N * n)
+        else:
+            Aw = (A3 * w[None, :, None]).reshape(N * n, p)
+            yw = (y2 * w).reshape(N * n)
         self._solve_stacked(Aw, yw)
         raw = y2 - A3 @ self.theta_
         self.residual_rms_per_output_ = np.sqrt(np.mean(raw**2, axis=0))
