@@ -28,19 +28,16 @@ class LeastSquares(Estimator):
         self._w = None  # per-output row weights (1 for OLS)
 
     # -- core on the weighted stacked system -------------------------------------------
-    def _solve_stacked(self, Aw: np.ndarray, yw: np.ndarray) -> None:
-        # QR of the augmented [A y]: R_aug = [[R, z], [0, rho]], ||r|| = |rho|.
-        p = Aw.shape[1]
-        aug = np.empty((Aw.shape[0], p + 1), order="F")  # LAPACK's layout: QR'd in place
-        aug[:, :p] = Aw
-        aug[:, p] = yw
-        Raug = qr(aug, mode="r", overwrite_a=True, check_finite=False)[0]
-        del aug
-        self.R_ = Raug[:p, :p]
-        self.z_ = Raug[:p, p]
+    def _solve_augmented(self, aug: np.ndarray) -> None:
+        """QR of the weighted augmented [A y] (M, p + 1), Fortran-ordered (overwritten):
+        R_aug = [[R, z], [0, rho]], ||r|| = |rho|."""
+        p = aug.shape[1] - 1
         # an all-zero row (a joint whose equation is cut there) carries no information and
         # is no degree of freedom
-        self.n_rows_ = int(np.count_nonzero(np.any(Aw != 0, axis=1) | (yw != 0)))
+        self.n_rows_ = int(np.count_nonzero(np.any(aug != 0, axis=1)))
+        Raug = qr(aug, mode="r", overwrite_a=True, check_finite=False)[0]
+        self.R_ = Raug[:p, :p]
+        self.z_ = Raug[:p, p]
         self._finish()
         self.rss_ = float(Raug[p, p] ** 2) if Raug.shape[0] > p else 0.0
         self._stats()
@@ -75,12 +72,13 @@ class LeastSquares(Estimator):
         self.n_samples_ = N
         w = np.ones(n) if self._w is None or self._w.shape != (n,) else self._w
         self._w = w
-        if np.all(w == 1.0):  # x 1 changes no bit: no weighted copy (memory of long runs)
-            Aw, yw = A3.reshape(N * n, p), y2.reshape(N * n)
-        else:
-            Aw = (A3 * w[None, :, None]).reshape(N * n, p)
-            yw = (y2 * w).reshape(N * n)
-        self._solve_stacked(Aw, yw)
+        # the weighted rows straight into LAPACK's layout (no weighted copy: long runs)
+        aug = np.empty((N * n, p + 1), order="F")
+        wt = np.tile(w, N)  # row i * n + j: joint j's weight
+        np.multiply(A3.reshape(N * n, p), wt[:, None], out=aug[:, :p])
+        np.multiply(y2.reshape(N * n), wt, out=aug[:, p])
+        self._solve_augmented(aug)
+        del aug  # overwritten by the QR
         raw = y2 - A3 @ self.theta_
         self.residual_rms_per_output_ = np.sqrt(np.mean(raw**2, axis=0))
         self.residual_rms_ = float(np.sqrt(np.mean(raw**2)))
