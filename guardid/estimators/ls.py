@@ -9,9 +9,32 @@ the batch one and costs O(p^3) per sample.
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import qr, solve_triangular
+from scipy.linalg import get_lapack_funcs, qr, solve_triangular
 
 from ._base import Estimator, as_blocks, as_sample
+
+
+def _split_rows(x: np.ndarray, shape) -> np.ndarray:
+    """A view of ``x`` (M, ...) with its first axis split into ``shape``'s first two (no
+    copy: writes through it land in ``x``)."""
+    view = x.reshape(shape)
+    if not np.shares_memory(view, x):
+        raise AssertionError("a reshape that copies")  # numpy splits a strided axis in place
+    return view
+
+
+def _r_factor(aug: np.ndarray) -> np.ndarray:
+    """R of the QR of ``aug`` (M, k), Fortran-ordered, overwritten: LAPACK's geqrf called as
+    ``scipy.linalg.qr(aug, mode="r", overwrite_a=True)`` calls it, but only R's top
+    min(M, k) rows copied out (scipy's triu copies all M: 12 MiB per fit of a 4 h log)."""
+    if aug.size == 0:
+        return qr(aug, mode="r", check_finite=False)[0]
+    (geqrf,) = get_lapack_funcs(("geqrf",), (aug,))
+    lwork = geqrf(aug, lwork=-1, overwrite_a=True)[-2][0].real.astype(np.int_)
+    factored, _, _, info = geqrf(aug, lwork=lwork, overwrite_a=True)
+    if info < 0:
+        raise ValueError(f"illegal value in {-info}th argument of internal geqrf")
+    return np.triu(factored[: min(aug.shape)])
 
 
 class LeastSquares(Estimator):
@@ -35,7 +58,7 @@ class LeastSquares(Estimator):
         # an all-zero row (a joint whose equation is cut there) carries no information and
         # is no degree of freedom
         self.n_rows_ = int(np.count_nonzero(np.any(aug != 0, axis=1)))
-        Raug = qr(aug, mode="r", overwrite_a=True, check_finite=False)[0]
+        Raug = _r_factor(aug)
         self.R_ = Raug[:p, :p]
         self.z_ = Raug[:p, p]
         self._finish()
@@ -74,9 +97,9 @@ class LeastSquares(Estimator):
         self._w = w
         # the weighted rows straight into LAPACK's layout (no weighted copy: long runs)
         aug = np.empty((N * n, p + 1), order="F")
-        wt = np.tile(w, N)  # row i * n + j: joint j's weight
-        np.multiply(A3.reshape(N * n, p), wt[:, None], out=aug[:, :p])
-        np.multiply(y2.reshape(N * n), wt, out=aug[:, p])
+        rows = _split_rows(aug[:, :p], (N, n, p))  # row i * n + j: sample i, joint j
+        np.multiply(A3, w[None, :, None], out=rows)  # (A3 need not be C-ordered: no copy)
+        np.multiply(y2, w[None, :], out=_split_rows(aug[:, p], (N, n)))
         self._solve_augmented(aug)
         del aug  # overwritten by the QR
         raw = y2 - A3 @ self.theta_
