@@ -12,6 +12,8 @@ motors and friction, the estimate's rigid body), conditioned like the measured r
 
 from __future__ import annotations
 
+from guardid._lazy import lazy_attributes
+
 _LAZY = {  # loaded on first use: the table and params.yaml need only STD_NOT_HONEST, and
     # the simulation's modules (plant, firmware emulator, protocol) cost identify 0.2 s
     "MAX_ITER": "fit",
@@ -24,12 +26,7 @@ _LAZY = {  # loaded on first use: the table and params.yaml need only STD_NOT_HO
 }
 
 
-def __getattr__(name):
-    if name in _LAZY:
-        import importlib
-
-        return getattr(importlib.import_module(f"guardid.closedloop.{_LAZY[name]}"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_attributes(__name__, _LAZY)
 
 
 STD_NOT_HONEST = {

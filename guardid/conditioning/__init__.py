@@ -5,6 +5,8 @@ current, convert to torque, decimate, mask stiction) -> :class:`Conditioned`.
 Online: :class:`CausalConditioner`. The building blocks are plain functions.
 """
 
+from guardid._lazy import lazy_attributes
+
 _SOURCE = {  # loaded on first use: a submodule's constants need no scipy (excite, capture)
     "CausalConditioner": "causal",
     "Conditioned": "pipeline",
@@ -31,12 +33,7 @@ _SOURCE = {  # loaded on first use: a submodule's constants need no scipy (excit
 }
 
 
-def __getattr__(name):
-    if name in _SOURCE:
-        import importlib
-
-        return getattr(importlib.import_module(f"guardid.conditioning.{_SOURCE[name]}"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_attributes(__name__, _SOURCE)
 
 
 __all__ = [
