@@ -312,3 +312,18 @@ def test_fast_parser_leaves_anything_but_plain_decimals_to_the_checked_path(bloc
 
     assert parse_plain(block, 2) is None
     assert parse_plain(b"1,-2.50\n", 2).tolist() == [[1.0, -2.5]]
+
+
+def test_joint_groups_are_the_columns_without_a_copy(sim_log):
+    """Issue 30 (memory): a per-joint group in the log's joint order is handed out as it is
+    stored (the columns are views of it: no (N, n) copy beside the store); in another
+    order it is a fresh array of those columns. Values against a str.split/float parse."""
+    data = read_log(sim_log)
+    names, rows, _ = reference(sim_log.read_text())
+    joints = data.joint_names
+    q = data.joint_array("q", joints)
+    assert np.array_equal(q, rows[:, [names.index(f"q_{j}_rad") for j in joints]])
+    assert all(np.shares_memory(q, data.columns[f"q_{j}_rad"]) for j in joints)
+    assert q.flags.c_contiguous
+    swapped = data.joint_array("q", joints[::-1])
+    assert np.array_equal(swapped, q[:, ::-1]) and not np.shares_memory(swapped, q)
