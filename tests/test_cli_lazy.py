@@ -91,11 +91,12 @@ def test_capture_imports_no_optimiser(gap_guard_captures, tmp_path):
         f"        '-o', {str(tmp_path / 'log.csv')!r}]\n"
         "try:\n    main(args, prog_name='guardid')\nexcept SystemExit as e:\n"
         "    assert not e.code, e.code\n"
-        "print('LOADED', 'scipy.optimize' in sys.modules, 'guardid.excitation' in sys.modules)\n"
+        "print('LOADED', 'scipy.optimize' in sys.modules, 'guardid.excitation' in sys.modules,\n"
+        "      sorted(m for m in sys.modules if m.startswith(('scipy', 'matplotlib'))))\n"
     )
     done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
-    assert done.stdout.strip().splitlines()[-1] == "LOADED False True"
+    assert done.stdout.strip().splitlines()[-1] == "LOADED False True []"  # no scipy at all
     assert (tmp_path / "log.csv").stat().st_size > 0
 
 
@@ -121,3 +122,39 @@ def test_a_command_runs_one_blas_thread_unless_told(given, threads):
                           env=env)  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip().splitlines()[-1] == f"THREADS {threads}"
+
+
+UNUSED_BY_HELP = ("scipy.signal", "scipy.stats", "scipy.interpolate", "matplotlib", "pinocchio")
+"""What no command's --help needs (scipy.signal alone is about 75 MiB of memory and 0.6 s)."""
+
+
+def _loaded_unused(calls) -> str:
+    """Run the guardid command lines ``calls`` in one fresh process, in turn; the last line
+    printed: after each call, the modules of :data:`UNUSED_BY_HELP` loaded so far."""
+    probe = "import sys\nfrom guardid.cli import main\nseen = []\n"
+    for args in calls:
+        probe += (
+            f"try:\n    main({args!r}, prog_name='guardid')\n"
+            "except SystemExit as e:\n    assert not e.code, e.code\n"
+            f"seen.append(({args[0]!r}, sorted(m for m in sys.modules\n"
+            f"                                  if m.startswith({UNUSED_BY_HELP!r}))))\n"
+        )
+    probe += "print('LOADED', [x for x in seen if x[1]])\n"
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    return done.stdout.strip().splitlines()[-1]
+
+
+def test_no_command_help_loads_signal_processing_or_plotting():
+    """``guardid CMD --help``, every command in turn in one process, imports only what the
+    help needs (issue 30 item 4): excite's once loaded scipy.signal, scipy.stats and
+    scipy.interpolate for one constant (about 75 MiB of memory)."""
+    assert _loaded_unused([[name, "--help"] for name, *_ in COMMANDS]) == "LOADED []"
+
+
+def test_excite_runs_without_signal_processing(tmp_path):
+    """``guardid excite`` makes a trajectory (scipy.linalg; scipy.optimize when it
+    optimises) and loads no scipy.signal, scipy.stats or scipy.interpolate (issue 30 item 4)."""
+    out = tmp_path / "traj.yaml"
+    assert _loaded_unused([["excite", "--no-optimise", "-o", str(out)]]) == "LOADED []"
+    assert out.stat().st_size > 0

@@ -405,3 +405,23 @@ def test_hopfield_settle_reaches_the_box_constrained_least_squares():
     tight.fit(A, y).settle(A, y)
     assert np.all(np.abs(tight.s_) < 1.0) and tight.theta_[3] > 2.49
     assert np.all(np.isfinite(tight.theta_))
+
+
+def test_least_squares_r_is_scipys_qr_of_the_weighted_rows_bit_for_bit():
+    """Issue 30 (memory): LS and WLS factor [A y] in place and copy out only R's top rows;
+    R, theta and the row count are those of scipy.linalg.qr(mode='r') of the weighted,
+    stacked [A y] (rows i * n + j), to the last bit. A is not C-ordered, as identify's is."""
+    from scipy.linalg import qr
+
+    from guardid.estimators import LeastSquares, WeightedLeastSquares
+
+    rng = np.random.default_rng(3)
+    A = np.transpose(rng.normal(size=(5, 300, 2)), (1, 2, 0))  # (N, n, p), not C-ordered
+    A[40:60, 1] = 0.0  # a cut joint's equations: zero rows
+    y = A @ np.arange(1.0, 6.0) + 0.1 * rng.normal(size=(300, 2))
+    y[40:60, 1] = 0.0
+    for est in (LeastSquares().fit(A, y), WeightedLeastSquares().fit(A, y)):
+        w = np.tile(est._w, 300)[:, None]
+        R = qr(np.column_stack([A.reshape(600, 5), y.reshape(600)]) * w, mode="r")[0]
+        assert np.array_equal(est.R_, R[:5, :5]) and np.array_equal(est.z_, R[:5, 5])
+        assert est.rss_ == R[5, 5] ** 2 and est.n_rows_ == 580

@@ -424,3 +424,18 @@ def test_the_path_that_read_a_log_is_logged(sim_log, tmp_path, caplog):
     names, rows, _ = reference(path.read_text())
     for c, name in enumerate(names):
         assert np.array_equal(got.columns[name], rows[:, c]), name
+
+
+def test_joint_groups_are_the_columns_without_a_copy(sim_log):
+    """Issue 30 (memory): a per-joint group in the log's joint order is handed out as it is
+    stored (the columns are views of it: no (N, n) copy beside the store); in another
+    order it is a fresh array of those columns. Values against a str.split/float parse."""
+    data = read_log(sim_log)
+    names, rows, _ = reference(sim_log.read_text())
+    joints = data.joint_names
+    q = data.joint_array("q", joints)
+    assert np.array_equal(q, rows[:, [names.index(f"q_{j}_rad") for j in joints]])
+    assert all(np.shares_memory(q, data.columns[f"q_{j}_rad"]) for j in joints)
+    assert q.flags.c_contiguous
+    swapped = data.joint_array("q", joints[::-1])
+    assert np.array_equal(swapped, q[:, ::-1]) and not np.shares_memory(swapped, q)

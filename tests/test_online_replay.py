@@ -131,11 +131,14 @@ def test_replay_with_gaps_restarts_as_the_stream_does(payload_log):
 def test_replay_by_short_chunks_with_gaps_is_the_stream(payload_log, monkeypatch):
     """Issue 30 (memory): the conditioning of each run between gaps 37 rows at a time (the
     filter's state and last outputs carried over, each row released once the flags within
-    its guard are final) and the motor-equation current 37 rows at a time: still the live
-    tracker's rows, estimates and reports (chunk boundaries near the gaps and the payload)."""
+    its guard are final), the motor-equation current 37 rows at a time and the released rows
+    through the estimators 1201 at a time, as they come (more than the tracker's
+    replay span of rows: the rows keep two chunks): still the live tracker's rows,
+    estimates and reports (chunk boundaries near the gaps and the payload)."""
     from guardid.online import motor, replay
 
     monkeypatch.setattr(replay, "SEGMENT_CHUNK", 37)
+    monkeypatch.setattr(replay, "CHUNK_ROWS", 1201)
     monkeypatch.setattr(motor, "REPLAY_CHUNK", 37)
     run, trajectory = payload_log
     keep = np.ones(len(run.ticks), dtype=bool)

@@ -12,13 +12,22 @@ motors and friction, the estimate's rigid body), conditioned like the measured r
 
 from __future__ import annotations
 
-from guardid.closedloop.fit import MAX_ITER, ClosedLoopEstimate, closed_loop_fit
-from guardid.closedloop.rows import (
-    ClosedLoopRuns,
-    check_inputs,
-    physical_check,
-    regressor_builder,
-)
+from guardid._lazy import lazy_attributes
+
+_LAZY = {  # loaded on first use: the table and params.yaml need only STD_NOT_HONEST, and
+    # the simulation's modules (plant, firmware emulator, protocol) cost identify 0.2 s
+    "MAX_ITER": "fit",
+    "ClosedLoopEstimate": "fit",
+    "closed_loop_fit": "fit",
+    "ClosedLoopRuns": "rows",
+    "check_inputs": "rows",
+    "physical_check": "rows",
+    "regressor_builder": "rows",
+}
+
+
+__getattr__ = lazy_attributes(__name__, _LAZY)
+
 
 STD_NOT_HONEST = {
     "didim": "its std is not honest: s^2 (Z^T Z)^-1 neglects how the simulated motion moves "
@@ -38,6 +47,8 @@ def fit_closed_loop(method, A, y, rows, inputs, description, model, free, flags)
     Never raises for a simulation that diverges or a parameter set that cannot be simulated:
     the estimate is then marked not converged and one warning names the method, the run
     and the time (``est.stopped``)."""
+    from guardid.closedloop.fit import MAX_ITER, closed_loop_fit
+    from guardid.closedloop.rows import ClosedLoopRuns, physical_check, regressor_builder
     from guardid.estimators import WeightedLeastSquares
 
     data = ClosedLoopRuns(*inputs)

@@ -5,27 +5,36 @@ current, convert to torque, decimate, mask stiction) -> :class:`Conditioned`.
 Online: :class:`CausalConditioner`. The building blocks are plain functions.
 """
 
-from guardid.conditioning.alignment import align_period_mean
-from guardid.conditioning.bandwidth import choose_cutoff, energy_bandwidth
-from guardid.conditioning.causal import CausalConditioner, StreamOutput, dc_group_delay
-from guardid.conditioning.filters import (
-    central_derivatives,
-    decimate,
-    decimation_factor,
-    lowpass_sos,
-    resample,
-    uniform_grid,
-    zero_phase_lowpass,
-)
-from guardid.conditioning.parallel import parallel_filter
-from guardid.conditioning.pipeline import Conditioned, condition
-from guardid.conditioning.stiction import default_stiction_threshold, stiction_mask
-from guardid.conditioning.units import (
-    counts_per_joint_rev,
-    counts_to_rad,
-    current_to_torque,
-    drive_gain,
-)
+from guardid._lazy import lazy_attributes
+
+_SOURCE = {  # loaded on first use: a submodule's constants need no scipy (excite, capture)
+    "CausalConditioner": "causal",
+    "Conditioned": "pipeline",
+    "StreamOutput": "causal",
+    "align_period_mean": "alignment",
+    "central_derivatives": "filters",
+    "choose_cutoff": "bandwidth",
+    "condition": "pipeline",
+    "counts_per_joint_rev": "units",
+    "counts_to_rad": "units",
+    "current_to_torque": "units",
+    "dc_group_delay": "causal",
+    "decimate": "filters",
+    "decimation_factor": "filters",
+    "default_stiction_threshold": "stiction",
+    "drive_gain": "units",
+    "energy_bandwidth": "bandwidth",
+    "lowpass_sos": "filters",
+    "parallel_filter": "parallel",
+    "resample": "filters",
+    "stiction_mask": "stiction",
+    "uniform_grid": "filters",
+    "zero_phase_lowpass": "filters",
+}
+
+
+__getattr__ = lazy_attributes(__name__, _SOURCE)
+
 
 __all__ = [
     "CausalConditioner",

@@ -24,8 +24,6 @@ Design (DESIGN.md sections 2 and 5):
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import CubicSpline
-from scipy.signal import butter, sosfiltfilt
 
 DEFAULT_ORDER = 4
 """Butterworth order (sosfiltfilt doubles the attenuation slope)."""
@@ -35,6 +33,8 @@ def lowpass_sos(cutoff_hz: float, fs_hz: float, order: int = DEFAULT_ORDER) -> n
     """Butterworth low-pass as second-order sections, cut-off [Hz] at sample rate fs [Hz]."""
     if not 0.0 < cutoff_hz < 0.5 * fs_hz:
         raise ValueError(f"cut-off {cutoff_hz} Hz must lie in (0, fs/2 = {0.5 * fs_hz}) Hz")
+    from scipy.signal import butter  # here: the constants need no scipy
+
     return butter(order, cutoff_hz, btype="low", fs=fs_hz, output="sos")
 
 
@@ -48,6 +48,8 @@ def zero_phase_lowpass(x, fs_hz: float, cutoff_hz: float, order: int = DEFAULT_O
     x = np.asarray(x, dtype=float)
     sos = lowpass_sos(cutoff_hz, fs_hz, order)
     padlen = min(int(np.ceil(3.0 * fs_hz / cutoff_hz)), x.shape[0] - 1)
+    from scipy.signal import sosfiltfilt
+
     return sosfiltfilt(sos, x, axis=0, padlen=padlen)
 
 
@@ -71,6 +73,8 @@ def is_uniform(t_s, rtol: float = 1e-6) -> bool:
 
 def resample(t_s, x, grid) -> np.ndarray:
     """Values of ``x`` (N, ...) sampled at ``t_s`` evaluated at ``grid`` (cubic spline)."""
+    from scipy.interpolate import CubicSpline
+
     return CubicSpline(np.asarray(t_s, float), np.asarray(x, float), axis=0)(grid)
 
 

@@ -87,7 +87,8 @@ class MomentumState:
     (:func:`regressor_rows`): raw tick signals and the rows' construction."""
 
     q: np.ndarray  # (N, n) positions at the ticks [rad | m]
-    v: np.ndarray  # (N, n) tick velocities [rad/s | m/s]
+    measured_v: np.ndarray | None  # (N, n) measured tick velocities [rad/s | m/s]; None:
+    # the ``points`` stencil of ``q``, recomputed when needed (no per-tick array kept)
     dt: float  # tick period [s]
     valid: np.ndarray  # (N, n) period k (ending at tick k) usable for joint j
     sos: np.ndarray  # the filter
@@ -96,6 +97,13 @@ class MomentumState:
     row_mask: np.ndarray  # (M, n) filtered equation valid at the row
     kink: int | None = None  # the stencil whose kink correction the rows carry
     points: int = 3  # the velocity stencil (or 5 for measured velocities: rows_like)
+
+    @property
+    def v(self) -> np.ndarray:
+        """(N, n) tick velocities [rad/s | m/s]: the measured ones, else the stencil's."""
+        if self.measured_v is not None:
+            return self.measured_v
+        return tick_velocity(self.q, self.dt, self.points)[0]
 
 
 def momentum_cutoff(fs_hz: float, bandwidth_hz: float, from_harmonic: bool) -> float:
@@ -475,7 +483,7 @@ def rows_like(state: MomentumState, model, q) -> np.ndarray:
     the ticks, cuts, filter and kept rows of ``state`` (velocities from ``q`` by the same
     stencil): a simulated run's rows aligned with the measured one's."""
     v, _ = tick_velocity(q, state.dt, state.points)
-    return regressor_rows(replace(state, q=q, v=v), model)
+    return regressor_rows(replace(state, q=q, measured_v=v), model)
 
 
 def regressor_rows(state: MomentumState, model) -> np.ndarray:
@@ -562,8 +570,8 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
     qdd = np.zeros((len(rows), n_j))  # central difference of v, at the kept rows only
     inner = (rows > 0) & (rows < len(t) - 1)
     qdd[inner] = (v[rows[inner] + 1] - v[rows[inner] - 1]) / (2.0 * dt)
-    state = MomentumState(q, v, dt, valid, sos, skip, rows, jm, kink,
-                          points if velocity is None else 5)  # fmt: skip
+    state = MomentumState(q, None if velocity is None else v, dt, valid, sos, skip, rows, jm,
+                          kink, points if velocity is None else 5)  # fmt: skip
     share = 100.0 * valid.sum(0) / max(len(t), 1)
     notes = [
         f"cut-off {cutoff_hz:.3g} Hz",

@@ -9,9 +9,32 @@ the batch one and costs O(p^3) per sample.
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import qr, solve_triangular
+from scipy.linalg import get_lapack_funcs, qr, solve_triangular
 
 from ._base import Estimator, as_blocks, as_sample
+
+
+def _split_rows(x: np.ndarray, shape) -> np.ndarray:
+    """A view of ``x`` (M, ...) with its first axis split into ``shape``'s first two (no
+    copy: writes through it land in ``x``)."""
+    view = x.reshape(shape)
+    if not np.shares_memory(view, x):
+        raise AssertionError("a reshape that copies")  # numpy splits a strided axis in place
+    return view
+
+
+def _r_factor(aug: np.ndarray) -> np.ndarray:
+    """R of the QR of ``aug`` (M, k), Fortran-ordered, overwritten: LAPACK's geqrf called as
+    ``scipy.linalg.qr(aug, mode="r", overwrite_a=True)`` calls it, but only R's top
+    min(M, k) rows copied out (scipy's triu copies all M: 12 MiB per fit of a 4 h log)."""
+    if aug.size == 0:
+        return qr(aug, mode="r", check_finite=False)[0]
+    (geqrf,) = get_lapack_funcs(("geqrf",), (aug,))
+    lwork = geqrf(aug, lwork=-1, overwrite_a=True)[-2][0].real.astype(np.int_)
+    factored, _, _, info = geqrf(aug, lwork=lwork, overwrite_a=True)
+    if info < 0:
+        raise ValueError(f"illegal value in {-info}th argument of internal geqrf")
+    return np.triu(factored[: min(aug.shape)])
 
 
 class LeastSquares(Estimator):
@@ -28,15 +51,16 @@ class LeastSquares(Estimator):
         self._w = None  # per-output row weights (1 for OLS)
 
     # -- core on the weighted stacked system -------------------------------------------
-    def _solve_stacked(self, Aw: np.ndarray, yw: np.ndarray) -> None:
-        # QR of the augmented [A y]: R_aug = [[R, z], [0, rho]], ||r|| = |rho|.
-        p = Aw.shape[1]
-        Raug = qr(np.column_stack([Aw, yw]), mode="r", check_finite=False)[0]
-        self.R_ = Raug[:p, :p]
-        self.z_ = Raug[:p, p]
+    def _solve_augmented(self, aug: np.ndarray) -> None:
+        """QR of the weighted augmented [A y] (M, p + 1), Fortran-ordered (overwritten):
+        R_aug = [[R, z], [0, rho]], ||r|| = |rho|."""
+        p = aug.shape[1] - 1
         # an all-zero row (a joint whose equation is cut there) carries no information and
         # is no degree of freedom
-        self.n_rows_ = int(np.count_nonzero(np.any(Aw != 0, axis=1) | (yw != 0)))
+        self.n_rows_ = int(np.count_nonzero(np.any(aug != 0, axis=1)))
+        Raug = _r_factor(aug)
+        self.R_ = Raug[:p, :p]
+        self.z_ = Raug[:p, p]
         self._finish()
         self.rss_ = float(Raug[p, p] ** 2) if Raug.shape[0] > p else 0.0
         self._stats()
@@ -71,9 +95,13 @@ class LeastSquares(Estimator):
         self.n_samples_ = N
         w = np.ones(n) if self._w is None or self._w.shape != (n,) else self._w
         self._w = w
-        Aw = (A3 * w[None, :, None]).reshape(N * n, p)
-        yw = (y2 * w).reshape(N * n)
-        self._solve_stacked(Aw, yw)
+        # the weighted rows straight into LAPACK's layout (no weighted copy: long runs)
+        aug = np.empty((N * n, p + 1), order="F")
+        rows = _split_rows(aug[:, :p], (N, n, p))  # row i * n + j: sample i, joint j
+        np.multiply(A3, w[None, :, None], out=rows)  # (A3 need not be C-ordered: no copy)
+        np.multiply(y2, w[None, :], out=_split_rows(aug[:, p], (N, n)))
+        self._solve_augmented(aug)
+        del aug  # overwritten by the QR
         raw = y2 - A3 @ self.theta_
         self.residual_rms_per_output_ = np.sqrt(np.mean(raw**2, axis=0))
         self.residual_rms_ = float(np.sqrt(np.mean(raw**2)))

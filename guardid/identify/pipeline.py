@@ -233,12 +233,26 @@ def identify(runs, description, options: IdentifyOptions | None = None) -> Ident
         in_current_units=options.in_current_units, effort_is_torque=torque,
         highest_harmonic_hz=runs[0].highest_harmonic_hz,
     )  # fmt: skip
+    return_freed_memory()  # the conditioning's per-tick temporaries, before the fit
     fit_rows = _fit_rows(rows, runs, description, options, torque)
     results = _fit_all(methods, fit_rows)  # the estimators, in the order asked
     result = _result_of(fit_rows, results, options, torque)  # checks, warnings, motors
     if split is not None:
         result.warnings[:0] = split.lines(result.cutoff_hz)
     return result
+
+
+def return_freed_memory() -> None:
+    """Give the free pages inside the heap back to the system (glibc's ``malloc_trim``; a
+    no-op elsewhere): arrays below glibc's mmap threshold are freed into the heap, whose
+    pages stay resident unless trimmed (4 h log: about 12 MiB less through the fit)."""
+    try:
+        import ctypes
+
+        trim = ctypes.CDLL(None).malloc_trim
+    except (OSError, AttributeError, TypeError):
+        return
+    trim(0)
 
 
 def prepared_runs(runs, description, options: IdentifyOptions | None = None):

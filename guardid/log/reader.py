@@ -1,16 +1,18 @@
 """Read a capture log in one pass: column names, YAML header, data rows, YAML footer.
 
 The file is read once, in blocks of :data:`BLOCK_BYTES`; each block of complete data lines
-is parsed by :mod:`guardid.log.numeric` (compiled loops) into one preallocated float64
-array, so memory follows the rows kept, not the text. Every problem is a one-line
-:class:`~guardid.errors.LogFormatError` naming the file and the line (and column): binary
-or gzip-compressed data, a field that is not a number, NaN or inf, a line with another field
-count, data after the footer, ticks that do not increase (two logs appended or a repeated
-tick), a column name given twice, a header naming a format version this reader does not
-know, fields separated by tabs or semicolons (guardid logs are comma-separated). A last row
-cut mid-line (a killed writer) is dropped with a :class:`~guardid.errors.LogWarning`, and so
-is a footer whose row count disagrees with the rows read. A UTF-8 byte-order mark before
-the column names (an editor's) is skipped.
+is parsed by :mod:`guardid.log.numeric` (compiled loops) into preallocated float64 arrays,
+one (rows, joints) array per per-joint column group (``q_*``, ``i_*``, ...: what
+:meth:`LogData.joint_array` returns without a copy) and one per other column, so memory
+follows the rows kept, not the text, and a group no one keeps is freed on its own. Every
+problem is a one-line :class:`~guardid.errors.LogFormatError` naming the file and the line
+(and column): binary or gzip-compressed data, a field that is not a number, NaN or inf, a
+line with another field count, data after the footer, ticks that do not increase (two logs
+appended or a repeated tick), a column name given twice, a header naming a format version
+this reader does not know, fields separated by tabs or semicolons (guardid logs are
+comma-separated). A last row cut mid-line (a killed writer) is dropped with a
+:class:`~guardid.errors.LogWarning`, and so is a footer whose row count disagrees with the
+rows read. A UTF-8 byte-order mark before the column names (an editor's) is skipped.
 """
 
 from __future__ import annotations
@@ -48,6 +50,9 @@ class LogData:
     footer: dict | None
     columns: dict[str, np.ndarray] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    groups: dict[tuple[str, ...], np.ndarray] = field(default_factory=dict, repr=False)
+    """(N, k) arrays of the per-joint column groups by their column names (file order): the
+    columns are views of them."""
 
     @property
     def joint_names(self) -> list[str]:
@@ -73,6 +78,9 @@ class LogData:
             )
         if not names:
             return np.empty((len(self.columns.get("tick", ())), 0))
+        whole = self.groups.get(tuple(names))
+        if whole is not None:  # the group as stored, in this order: no copy
+            return whole
         return np.column_stack([self.columns[c] for c in names])
 
     def check_joint_columns(self) -> None:
@@ -104,38 +112,69 @@ def read_log(path) -> LogData:
         raise LogFormatError(f"{path}: cannot read: {exc.strerror}") from None
 
 
-class _Rows:
-    """A growing (ncols, capacity) float64 store, sized from the first block's bytes per row
-    and the file's size; ``line_of(row)`` gives a row's line number."""
+_JOINT_GROUPS = ("counts", "q", "v", "i", "sp")
 
-    def __init__(self, ncols: int, file_bytes: int) -> None:
-        self.data = np.empty((ncols, 0))
+
+class _Rows:
+    """Growing float64 stores, one (capacity, k) array per column group (the columns of a
+    per-joint group together, every other column alone), sized from the first block's
+    bytes per row and the file's size; ``line_of(row)`` gives a row's line number."""
+
+    def __init__(self, names: list[str], file_bytes: int) -> None:
+        members: dict[tuple[str, str], list[int]] = {}
+        for c, name in enumerate(names):
+            key = name.split("_", 1)[0]
+            group = ("group", key) if "_" in name and key in _JOINT_GROUPS else ("one", name)
+            members.setdefault(group, []).append(c)
+        self.names = names
+        self.cols = [
+            slice(c[0], c[-1] + 1) if c == list(range(c[0], c[-1] + 1)) else np.array(c)
+            for c in members.values()
+        ]
+        self.members = list(members.values())
+        self.blocks = [np.empty((0, len(c))) for c in self.members]
         self.n = 0
         self.file_bytes = file_bytes
         self._segments: list[tuple[int, int | np.ndarray]] = []  # (first row, line(s))
 
     def add(self, rows: np.ndarray, lines: int | np.ndarray, nbytes: int) -> None:
-        """Append ``rows`` (m, ncols) parsed from ``nbytes`` of text (already in place when
-        they are :meth:`space`'s view); ``lines``: the first row's line number when the rows
-        are consecutive lines, else each row's."""
+        """Append ``rows`` (m, ncols) parsed from ``nbytes`` of text; ``lines``: the first
+        row's line number when the rows are consecutive lines, else each row's."""
         m = len(rows)
-        view = self.space(m, nbytes)
-        if not np.may_share_memory(rows, self.data):
-            view[...] = rows
-        self._segments.append((self.n, lines))
-        self.n += m
-
-    def space(self, m: int, nbytes: int) -> np.ndarray:
-        """A writable (m, ncols) view of the next ``m`` rows (the store grown as needed)."""
-        if self.n + m > self.data.shape[1]:
+        if self.n + m > self.blocks[0].shape[0]:
             if self.n == 0:  # rows in the file, from this block's bytes per row, +2 %
                 want = int(m * self.file_bytes / max(nbytes, 1) * 1.02) + 16
             else:
-                want = self.data.shape[1] * 5 // 4
-            grown = np.empty((self.data.shape[0], max(self.n + m, want)))
-            grown[:, : self.n] = self.data[:, : self.n]
-            self.data = grown
-        return self.data[:, self.n : self.n + m].T
+                want = self.blocks[0].shape[0] * 5 // 4
+            for g, old in enumerate(self.blocks):
+                grown = np.empty((max(self.n + m, want), old.shape[1]))
+                grown[: self.n] = old[: self.n]
+                self.blocks[g] = grown
+        for cols, block in zip(self.cols, self.blocks, strict=True):
+            block[self.n : self.n + m] = rows[:, cols]
+        self._segments.append((self.n, lines))
+        self.n += m
+
+    def space(self, m: int, nbytes: int) -> np.ndarray:  # noqa: ARG002 (the parsers' signature)
+        """A writable (m, ncols) buffer for the next ``m`` rows, which :meth:`add` then
+        copies into the column groups' stores."""
+        return np.empty((m, len(self.names)))
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """Every column (a view of its group's store), in file order."""
+        out = {}
+        for members, block in zip(self.members, self.blocks, strict=True):
+            for j, c in enumerate(members):
+                out[c] = block[: self.n, j]
+        return {self.names[c]: out[c] for c in sorted(out)}
+
+    def groups(self) -> dict[tuple[str, ...], np.ndarray]:
+        """The per-joint groups' (N, k) stores by their column names."""
+        return {
+            tuple(self.names[c] for c in members): block[: self.n]
+            for members, block in zip(self.members, self.blocks, strict=True)
+            if len(members) > 1 or self.names[members[0]].split("_", 1)[0] in _JOINT_GROUPS
+        }
 
     def line_of(self, row: int) -> int:
         for first, lines in reversed(self._segments):
@@ -178,16 +217,16 @@ class _Reader:
                 break
         header = _yaml(path, head, "header")
         _check_version(path, header)
-        store = _Rows(len(names), path.stat().st_size)
+        store = _Rows(names, path.stat().st_size)
         self.decimals = decimals_of(pending, len(names))
         foot = self._body(names, pending, store)
         _LOG.debug("%s: %d rows; read by path: %s", path, store.n, self.path_rows)
         footer = _yaml(path, foot, "footer").get("footer") if foot is not None else None
-        columns = {name: store.data[c, : store.n] for c, name in enumerate(names)}
+        columns = store.columns()
         if "tick" in columns:
             columns["tick"] = self._ticks(columns["tick"], store)
         self._check_footer(footer, store.n)
-        return LogData(path, header, footer, columns, self.warnings)
+        return LogData(path, header, footer, columns, self.warnings, store.groups())
 
     def _check_footer(self, footer, rows: int) -> None:
         """Warn when the footer's row count is not the number of data rows read."""

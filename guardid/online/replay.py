@@ -43,34 +43,21 @@ def replay(tracker, t_s, q_rad, current_a, voltage_v=None) -> list:
         effort = tk.motor.replay(voltage_v, q, effort, new_run)
     starts = np.flatnonzero(new_run)
     ends = np.append(starts[1:], N)
-    cond = tk.conditioner
-    flags = np.zeros((N, n), dtype=bool)  # the stream's flag ring, unrolled
-    keep = [[] for _ in range(6)]  # rows k, bad, q, qd, qdd, tau released, by chunks
-    for s, e in zip(starts, ends, strict=True):
-        _segment(tk, q, effort, flags, s, e, keep)
-    del flags
-    rows_k, bad, qf, qd, qdd, tau = (_joined(part) for part in keep)
-    del keep
-    t_use = t[rows_k] - cond.delay_s
     tk.rows = N
     tk._k = N - 1
     tk._replayed = True
-    tk.busy_s += time.perf_counter() - started
-    rows = Rows(t_use, ~bad)
     methods = [MethodReplay(tk, m, order) for order, m in enumerate(tk.methods)]
-    for c0 in range(0, len(rows_k), CHUNK_ROWS):  # equations a chunk at a time: bounded memory
-        c1 = min(c0 + CHUNK_ROWS, len(rows_k))
-        A, y = _equations(tk, qf[c0:c1], qd[c0:c1], qdd[c0:c1], tau[c0:c1])
-        absent = bad[c0:c1]
-        A[absent] = 0.0  # an absent joint's equation as a zero row: it adds nothing
-        y[absent] = 0.0
-        rows.set_chunk(c0, A, y)
-        run_together(methods, rows, c0, c1)
+    stream = _Stream(tk, t, n, methods)
+    flags = np.zeros((N, n), dtype=bool)  # the stream's flag ring, unrolled
+    for s, e in zip(starts, ends, strict=True):
+        _segment(tk, q, effort, flags, s, e, stream)
+    del flags
+    stream.finish()
     for method in methods:
         method.finish()
-    tk.used = len(rows_k)
+    tk.used = stream.used
     if tk.keep_history:
-        tk._hist_t.extend(t_use)
+        tk._hist_t.extend(stream.rows.t[: stream.used])
     found = sorted((r for method in methods for r in method.reports), key=lambda r: r[:2])
     reports = [r[2] for r in found]
     tk.reports += reports
@@ -86,8 +73,8 @@ outputs carried over; peak memory of long logs)."""
 def _segment(tk, q, effort, flags, s, e, keep) -> None:
     """Rows s .. e - 1 (a run between gaps) through the causal conditioning by chunks of
     :data:`SEGMENT_CHUNK` rows: the stream's flags set in ``flags`` (N, n), the rows the
-    guard releases and some joint uses appended to ``keep`` (rows k, bad, q, qd, qdd,
-    tau), each as soon as the flags within its guard are final."""
+    guard releases and some joint uses given to ``keep`` (:class:`_Stream`: rows k, bad, q,
+    qd, qdd, tau), each as soon as the flags within its guard are final."""
     cond, n = tk.conditioner, q.shape[1]
     lag, g, warmup, dt = tk._lag, tk.guard, tk.warmup, cond.dt
     x0 = np.concatenate([q[s], effort[s]])
@@ -131,7 +118,7 @@ def _segment(tk, q, effort, flags, s, e, keep) -> None:
 
 
 def _release(tk, flags, pending, last_k, keep) -> list:
-    """Append the pending rows k <= ``last_k`` that some joint uses to ``keep`` with their
+    """Give the pending rows k <= ``last_k`` that some joint uses to ``keep`` with their
     bad joints (any flag within the guard of the sample j = k - lag, j - g .. j + g); the
     rest stay pending (returned)."""
     lag, g, n = tk._lag, tk.guard, flags.shape[1]
@@ -151,20 +138,49 @@ def _release(tk, flags, pending, last_k, keep) -> list:
     if not tk.per_joint:
         bad[:] = bad.any(axis=1, keepdims=True)
     use = ~bad.all(axis=1)
-    for part, x in zip(keep, (kk[use], bad[use], qf[use], qd[use], qdd[use], tau[use]),
-                       strict=True):  # fmt: skip
-        part.append(x)
+    keep.add(kk[use], bad[use], qf[use], qd[use], qdd[use], tau[use])
     return later
 
 
-def _joined(parts: list) -> np.ndarray:
-    """The segments' pieces of one field in one array, each piece released as soon as it is
-    copied (one field's copy at a time; none for a single segment)."""
-    if len(parts) == 1:
-        return parts.pop()
-    out = np.concatenate(parts)
-    parts.clear()
-    return out
+class _Stream:
+    """The used rows, as the conditioning releases them, through the estimators by chunks
+    of :data:`CHUNK_ROWS` rows (the same chunks as if all rows were formed first): only the
+    times and the joints' use of every row are kept (``rows``), the conditioned signals
+    only until their chunk has run (memory of long logs)."""
+
+    def __init__(self, tk, t, n, methods) -> None:
+        self.tk, self.t, self.methods = tk, t, methods
+        self.rows = Rows(np.empty(len(t)), np.empty((len(t), n), dtype=bool))
+        self.used = 0  # rows released so far
+        self.done = 0  # rows through the estimators
+        self.parts: list = []  # (bad, q, qd, qdd, tau) of the rows released, not yet run
+
+    def add(self, k, bad, qf, qd, qdd, tau) -> None:
+        """Rows ``k`` released (their bad joints and conditioned signals)."""
+        a, b = self.used, self.used + len(k)
+        self.rows.t[a:b] = self.t[k] - self.tk.conditioner.delay_s
+        self.rows.ok[a:b] = ~bad
+        self.used = b
+        self.parts.append((bad, qf, qd, qdd, tau))
+        while self.used - self.done >= CHUNK_ROWS:
+            self._run(CHUNK_ROWS)
+
+    def finish(self) -> None:
+        """The last rows (a chunk shorter than :data:`CHUNK_ROWS`)."""
+        if self.used > self.done:
+            self._run(self.used - self.done)
+
+    def _run(self, size: int) -> None:
+        fields = [np.concatenate(f) for f in zip(*self.parts, strict=True)]
+        self.parts = [tuple(f[size:] for f in fields)] if len(fields[0]) > size else []
+        absent, qf, qd, qdd, tau = (f[:size] for f in fields)
+        c0, c1 = self.done, self.done + size
+        A, y = _equations(self.tk, qf, qd, qdd, tau)
+        A[absent] = 0.0  # an absent joint's equation as a zero row: it adds nothing
+        y[absent] = 0.0
+        self.rows.set_chunk(c0, A, y)
+        run_together(self.methods, self.rows, c0, c1)
+        self.done = c1
 
 
 def _equations(tk, q, qd, qdd, tau):
