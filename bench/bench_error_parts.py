@@ -105,7 +105,8 @@ def main() -> None:
                 note = f", {'identical to' if same else 'DIFFERS from'} {kept}"
             parts, names = seed_parts(run, q_true, i_true, desc, truth, seed)
             out.append(parts)
-            print(f"  seed {seed} done{note}", flush=True)
+            print(f"  seed {seed} done{note}; parts x 100:", *(" ".join(f"{x:+.0f}" for x in
+                  100 * p) for p in parts), sep="\n    ", flush=True)  # fmt: skip
     z = np.array(out)  # (seeds, parts, b)
     if a.save:
         np.savez(a.save, parts=z, names=np.array(names), first_seed=a.first_seed)
