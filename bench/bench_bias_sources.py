@@ -64,13 +64,15 @@ def _cli(*args) -> None:
             raise
 
 
-def capture_with_truth(traj: Path, seed: int, duration: float, log: Path, phase: bool = True):
+def capture_with_truth(traj: Path, seed: int, duration: float, log: Path, phase: bool = True,
+                       port: str | None = None):  # fmt: skip
     """Capture ``log``; return (run, true q (N, 2) [rad], true current (N, 2) [A]).
-    ``phase``: the seed also places the start pose within an encoder count (``phase=1``)."""
+    ``phase``: the seed also places the start pose within an encoder count (``phase=1``);
+    ``port``: other fake-port options instead (e.g. ``start=50&supply=0.02``)."""
     _TRUTH.clear()
-    plant_module.Plant.step_sensors = _recording_step
+    plant_module.Plant.step_sensors = lambda self, u: _recording_step(self, u)
     try:
-        port = f"sim://guard?seed={seed}" + ("&phase=1" if phase else "")
+        port = f"sim://guard?seed={seed}" + (f"&{port}" if port else "&phase=1" if phase else "")
         _cli("capture", "--trajectory", str(traj), "--duration", f"{duration:g}",
              "--port", port, "--quiet", "--force", "-o", str(log))  # fmt: skip
     finally:
