@@ -264,7 +264,34 @@ def prepared_runs(runs, description, options: IdentifyOptions | None = None):
     runs = [_in_joint_order(r, description) for r in runs]
     if not runs:
         return runs, None
+    for run in runs:
+        _current_on_adc_levels(run, description)
     return _segments(runs, options)
+
+
+def _current_on_adc_levels(run, description) -> None:
+    """A guardid log's motor currents put back, in place, on each joint's ADC levels when
+    they are those levels as the telemetry rounds them
+    (:func:`~guardid.conditioning.units.current_on_adc_levels`: the rounding's error follows
+    the motion and does not shrink with the log's length); a joint whose values are not is
+    left as it is. Exact levels come back as they are, so a second call changes nothing."""
+    from guardid.conditioning.units import current_on_adc_levels
+    from guardid.protocol.codec import SPEC
+
+    joints = getattr(description, "joints", None)
+    if run.torque or run.joint_names is None or joints is None or run.current is None:
+        return
+    (unit,) = [f.scale for f in SPEC.by_name("TELEMETRY").fields if f.name == "current"]
+    for j, joint in enumerate(joints):
+        sensor = joint.current_sensor
+        if sensor is None:
+            continue
+        levels = current_on_adc_levels(run.current[:, j], sensor.range, sensor.adc_bits,
+                                       unit)  # fmt: skip
+        if levels is not None:
+            if not run.current.flags.writeable:
+                run.current = np.array(run.current)
+            run.current[:, j] = levels
 
 
 def _in_joint_order(run, description):
