@@ -49,12 +49,14 @@ def test_values_that_are_not_rounded_levels_are_left_alone(values, bits, why):
 
 def test_a_guardid_log_reaches_the_fit_on_the_adc_levels(gap_guard_captures):
     """A simulated capture's currents: every one within half a mA of the level identify
-    uses, and every level a whole number of ADC steps (numpy on the log)."""
+    uses, and every level a whole number of ADC steps (numpy on the log); identify's
+    preparation works on a copy."""
     description = load_robot("guard")
     run = load_run(gap_guard_captures[1])
     logged = np.array(run.current)
     (prepared,), _ = prepared_runs([run], description)
     levels = prepared.current
+    assert np.array_equal(run.current, logged)  # the caller's run is left as it was
     assert np.all(np.abs(levels - logged) <= 0.5e-3 + 1e-12)
     codes = levels / STEP_A
     assert np.array_equal(codes, np.round(codes))

@@ -288,7 +288,10 @@ def identify(
     if cv:
         _cross_validate(logs, runs, description, options)
         return
+    from guardid.identify.pipeline import current_on_adc_levels
+
     runs = [_lean(r, description, methods, report_path, bootstrap_k > 0) for r in runs]
+    runs = [current_on_adc_levels(r, description, in_place=True) for r in runs]  # for all
     run = runs[0]
     forked = None  # the tracker's replay on another core while the batch fit runs
     if plot_path is None and report_path is None:

@@ -264,34 +264,42 @@ def prepared_runs(runs, description, options: IdentifyOptions | None = None):
     runs = [_in_joint_order(r, description) for r in runs]
     if not runs:
         return runs, None
-    for run in runs:
-        _current_on_adc_levels(run, description)
+    runs = [current_on_adc_levels(r, description) for r in runs]
     return _segments(runs, options)
 
 
-def _current_on_adc_levels(run, description) -> None:
-    """A guardid log's motor currents put back, in place, on each joint's ADC levels when
-    they are those levels as the telemetry rounds them
-    (:func:`~guardid.conditioning.units.current_on_adc_levels`: the rounding's error follows
-    the motion and does not shrink with the log's length); a joint whose values are not is
-    left as it is. Exact levels come back as they are, so a second call changes nothing."""
-    from guardid.conditioning.units import current_on_adc_levels
+def current_on_adc_levels(run, description, in_place: bool = False):
+    """``run`` with its motor currents on each joint's ADC levels when they are those levels
+    as the telemetry rounds them (:func:`~guardid.conditioning.units.current_on_adc_levels`:
+    the rounding's error follows the motion and does not shrink with the log's length); a
+    joint whose values are not is left as it is. A copy with a new current array, or, with
+    ``in_place``, ``run`` itself changed (for a caller that owns the run's arrays, so that
+    every later stage, the tracker's replay included, reads the same currents). Levels
+    come back as they are: a second call changes nothing and copies nothing."""
+    from guardid.conditioning.units import current_on_adc_levels as on_levels
     from guardid.protocol.codec import SPEC
 
     joints = getattr(description, "joints", None)
-    if run.torque or run.joint_names is None or joints is None or run.current is None:
-        return
+    if run.torque or joints is None or run.current is None:
+        return run
     (unit,) = [f.scale for f in SPEC.by_name("TELEMETRY").fields if f.name == "current"]
+    current = run.current
     for j, joint in enumerate(joints):
         sensor = joint.current_sensor
-        if sensor is None:
+        if sensor is None or j >= current.shape[1]:
             continue
-        levels = current_on_adc_levels(run.current[:, j], sensor.range, sensor.adc_bits,
-                                       unit)  # fmt: skip
-        if levels is not None:
-            if not run.current.flags.writeable:
-                run.current = np.array(run.current)
-            run.current[:, j] = levels
+        levels = on_levels(current[:, j], sensor.range, sensor.adc_bits, unit)
+        if levels is None or np.array_equal(levels, current[:, j]):
+            continue
+        if current is run.current and not (in_place and current.flags.writeable):
+            current = np.array(current)
+        current[:, j] = levels
+    if current is run.current:
+        return run
+    if in_place:
+        run.current = current
+        return run
+    return replace(run, current=current)
 
 
 def _in_joint_order(run, description):
