@@ -274,10 +274,12 @@ def validate_runs(runs, names, description, sets, options, current_units=False, 
     ``scores``, ``preds`` ((run, label) -> predicted effort) and ``head``.
     """
     from guardid.identify.checks import call_naming_logs
+    from guardid.identify.pipeline import current_on_adc_levels
     from guardid.identify.rows import stacked_rows
     from guardid.identify.segments import split_runs
 
     torque = bool(runs[0].torque)
+    runs = [current_on_adc_levels(r, description) for r in runs]  # as identify fitted them
     split = split_runs(runs, options.cutoff_hz)  # long gaps: segments scored as runs
     if split.gaps:
         runs, names = split.runs, [r.path for r in split.runs]
