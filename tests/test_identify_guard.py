@@ -16,7 +16,11 @@ from guardid.dynamics import build_model
 from guardid.estimators import LeastSquares, d_tau
 from guardid.identify import HopfieldSettings, IdentifyOptions, identification_rows, identify
 from guardid.identify.methods import run_hopfield
-from guardid.identify.pipeline import identified_names, trajectory_highest_harmonic
+from guardid.identify.pipeline import (
+    current_on_adc_levels,
+    identified_names,
+    trajectory_highest_harmonic,
+)
 from guardid.identify.runs import load_run
 from guardid.log import read_log
 from guardid.robot import load_robot
@@ -167,8 +171,9 @@ def test_hopfield_column_is_the_network_not_least_squares(result, logs):
     settle = IdentifyOptions(methods=("hopfield",), hopfield=HopfieldSettings(settle=True))
     both = identify([run], GUARD, settle)
     np.testing.assert_array_equal(both.results["hopfield"].theta, hop.theta)
+    fitted = current_on_adc_levels(run, GUARD)  # the currents identify fits
     _, A, y = identification_rows(
-        run.t, run.q, run.current, GUARD, highest_harmonic_hz=_hh(logs["a"])
+        run.t, run.q, fitted.current, GUARD, highest_harmonic_hz=_hh(logs["a"])
     )
     p = A.shape[-1]
     lstsq = np.linalg.lstsq(A.reshape(-1, p), y.reshape(-1), rcond=None)[0]

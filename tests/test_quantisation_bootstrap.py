@@ -43,11 +43,13 @@ def test_known_bias_through_the_fit(gap_guard_captures, monkeypatch):
 
     import guardid.uncertainty.bootstrap as bootstrap_module
     import guardid.uncertainty.replicas as replicas_module
-    from guardid.identify.pipeline import IdentifyOptions, identify
+    from guardid.identify.pipeline import IdentifyOptions, current_on_adc_levels, identify
     from guardid.identify.runs import load_run
     from guardid.uncertainty import BootstrapOptions, quantisation_bootstrap
 
-    run = load_run(gap_guard_captures[1])
+    # on the ADC levels first, as the command puts it: the scaled replicas are then the
+    # fitted currents scaled (scaled values are off the levels and are fitted as they are)
+    run = current_on_adc_levels(load_run(gap_guard_captures[1]), GUARD, in_place=True)
     options = IdentifyOptions(methods=("wls",))
     result = identify([run], GUARD, options)
     theta = result.results["wls"].theta
