@@ -34,17 +34,54 @@ def test_levels_recovered_exactly_from_the_rounded_telemetry():
     assert np.array_equal(current_on_adc_levels(got, RANGE_A, BITS, UNIT_A), levels)
 
 
+def _rounded(codes, bits=BITS):
+    return telemetry_ma(np.asarray(codes) * (2 * RANGE_A / 2**bits))
+
+
+CODES = np.arange(-20, 20)  # 40 distinct levels: enough to be recognised
+
+
 @pytest.mark.parametrize(
     ("values", "bits", "why"),
     [
-        ([0.001, 0.002, 0.0031], 10, "3.1 mA: 0.8 mA from the 3.906 mA level, not its rounding"),
-        ([0.0, 0.0205, 0.041], 10, "means of several readings, between the levels"),
-        ([0.0, 0.003, 0.004], 12, "a 12-bit ADC: 0.98 mA steps, finer than twice the unit"),
-        ([0.0, 0.002, 0.004], 11, "an 11-bit ADC: 1.95 mA steps, not more than twice the unit"),
+        (np.r_[_rounded(CODES), 0.0031], 10, "3.1 mA: 0.8 mA from the 3.906 mA level"),
+        ((_rounded(CODES) + _rounded(CODES + 1)) / 2, 10, "means of two readings"),
+        (_rounded(CODES, 12), 12, "a 12-bit ADC: 0.98 mA steps, finer than twice the unit"),
+        (_rounded(CODES, 11), 11, "an 11-bit ADC: 1.95 mA steps, not more than twice the unit"),
+        (_rounded(np.arange(19)), 10, "19 distinct levels: too few to tell from chance"),
     ],
 )
 def test_values_that_are_not_rounded_levels_are_left_alone(values, bits, why):
     assert current_on_adc_levels(np.array(values), RANGE_A, bits, UNIT_A) is None, why
+
+
+def test_twenty_levels_and_a_nan():
+    """20 distinct levels are recognised; a NaN stays a NaN and does not stop the rest."""
+    values = np.r_[_rounded(np.arange(20)), np.nan]
+    got = current_on_adc_levels(values, RANGE_A, BITS, UNIT_A)
+    assert got is not None and np.isnan(got[-1])
+    assert np.array_equal(got[:-1], np.arange(20) * STEP_A)
+
+
+def test_cross_validation_scores_the_held_out_run_on_the_levels(gap_guard_captures, monkeypatch):
+    """--cv fits on the levels (identify) and scores the held-out run on them too."""
+    import guardid.identify.crossval as crossval
+    from guardid.identify.pipeline import IdentifyOptions
+
+    seen = []
+    run_tuple = crossval._run_tuple
+
+    def spy(part):
+        seen.append(np.array(part.current))
+        return run_tuple(part)
+
+    monkeypatch.setattr(crossval, "_run_tuple", spy)
+    runs = [load_run(gap_guard_captures[s]) for s in (1, 2)]
+    crossval.fold_scores(runs, load_robot("guard"), IdentifyOptions(methods=("ls",)))
+    assert len(seen) >= 2
+    for current in seen:
+        codes = current / STEP_A
+        assert np.array_equal(codes, np.round(codes))
 
 
 def test_a_guardid_log_reaches_the_fit_on_the_adc_levels(gap_guard_captures):

@@ -68,14 +68,25 @@ def current_on_adc_levels(current_a, full_range_a: float, adc_bits: int, unit_a:
     it biased the tilt's friction by 0.7 std (docs/std_residuals.md). When the step is more
     than twice the unit, each level's rounding is within half a unit of it and of no other
     level, so the level is recovered exactly: round(i / step) x step. None (the values kept
-    as they are) when the step is not that coarse, or when any value is more than half a
-    unit from every level (another firmware's conversion, an averaged reading, a foreign
-    log)."""
+    as they are) when the step is not that coarse, when any value is more than half a unit
+    from every level (another firmware's conversion, an averaged reading such as the AVR
+    port's mean of its oversampled conversions, a foreign log), or when the joint shows
+    fewer than :data:`MIN_DISTINCT_LEVELS` distinct levels (a value off the grid falls
+    within half a unit of a level by chance with probability unit / step: a few could pass
+    together). Values that are not finite are left where they are."""
     step = 2.0 * float(full_range_a) / (1 << int(adc_bits))
     if not step > 2.0 * unit_a:
         return None
     current = np.asarray(current_a, dtype=float)
-    levels = np.round(current / step) * step
-    if not np.all(np.abs(current - levels) <= 0.5 * unit_a * (1.0 + 1e-6)):
+    finite = np.isfinite(current)
+    levels = np.where(finite, np.round(current / step) * step, current)
+    near = np.abs(current - levels)[finite] <= 0.5 * unit_a * (1.0 + 1e-6)
+    if not np.all(near) or np.unique(levels[finite]).size < MIN_DISTINCT_LEVELS:
         return None
     return levels
+
+
+MIN_DISTINCT_LEVELS = 20
+"""Fewest distinct levels [-] a joint's current must show before it is put on the ADC's
+levels: 20 values off the grid all within half a unit of a level by chance has probability
+(unit / step)^20, below 1e-11 on the guard (1 mA against 3.906 mA steps)."""
