@@ -80,6 +80,15 @@ def _capture(runner, port, traj, seconds, out):
     return _rows(out)
 
 
+IDLE_S = 0.5
+"""[s] the pty's lock-step fallback (``--idle-ms``, 0.1 s by default): it steps the MCU after
+this much host silence. Under load a busy host can be silent that long between a reply and
+its next command; the step then runs ticks the host's ``sim://`` twin does not see (its
+reads advance the clock only when short of data), and the pty capture starts later, the
+tilt further down. Half the host's telemetry timeout (1 s) keeps the stream alive where
+the host does wait (the trajectory's last rows)."""
+
+
 def _serve(raw: dict):
     """A simulated board behind a pty, served in-process (what ``guardid fake-port`` does),
     so that the test can read its flash; yields (server, device)."""
@@ -90,7 +99,7 @@ def _serve(raw: dict):
 
     options = parse_options("guard", raw)
     device = make_device("guard", options)
-    server = PtyServer(LinkEngine(device, options.faults, options.seed), None)
+    server = PtyServer(LinkEngine(device, options.faults, options.seed), None, idle_s=IDLE_S)
     stop = threading.Event()
     thread = threading.Thread(target=server.serve, args=(stop.is_set,), daemon=True)
     thread.start()
@@ -142,7 +151,7 @@ def test_fake_port_cli_stk500v2_flash_then_capture(tmp_path):
     env = dict(os.environ)
     env.pop("GUARDID_FAKEPORT_DEVICE", None)
     cmd = [sys.executable, "-m", "guardid", "fake-port", "--firmware", "avr", "--bootloader",
-           "stk500v2", "--no-noise", "--seed", "2"]  # fmt: skip
+           "stk500v2", "--no-noise", "--seed", "2", "--idle-ms", str(IDLE_S * 1000)]  # fmt: skip
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=env)  # fmt: skip
     try:
