@@ -18,14 +18,12 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import os
-import shutil
-import subprocess
-import tempfile
 from pathlib import Path
 
-from guardid.errors import GuardidError
+from guardid import native
 from guardid.firmware.emulator import FIRMWARE_ID, FirmwareEmulator, bind_robot, require_simulable
 from guardid.firmware.pid import mv_from_volts
+from guardid.native import NativeBuildError, cache_dir, find_compiler
 
 FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware_proto"
 SOURCES = ("guard_proto.c", "core/guard_fw.c", "core/gf_sil.c")
@@ -37,24 +35,8 @@ _STATE_LEN = 11
 _lib = None
 
 
-class FirmwareBuildError(GuardidError):
+class FirmwareBuildError(NativeBuildError):
     """The C firmware core cannot be built or loaded (no compiler, sources missing)."""
-
-
-def find_compiler() -> str | None:
-    """``$CC`` if set, else the first of gcc, cc, clang on PATH."""
-    env = os.environ.get("CC")
-    if env:
-        return shutil.which(env) or None
-    return next((shutil.which(c) for c in ("gcc", "cc", "clang") if shutil.which(c)), None)
-
-
-def cache_dir() -> Path:
-    """Where built libraries are kept (outside the repository)."""
-    if os.environ.get("GUARDID_CACHE_DIR"):
-        return Path(os.environ["GUARDID_CACHE_DIR"])
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "guardid"
 
 
 def library_path(cc: str) -> Path:
@@ -83,25 +65,8 @@ def build_library() -> Path:
 
 
 def build_cached(lib: Path, command, what: str) -> Path:
-    """``lib`` [a cached shared library], built once by ``command(out)`` (the compiler's
-    argv writing to ``out``) into a temporary file renamed into place: atomic, so that
-    concurrent builders agree. A failed build is a FirmwareBuildError "``what`` failed:
-    <the compiler's first line>"."""
-    if lib.is_file():
-        return lib
-    lib.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".so", dir=lib.parent)
-    os.close(fd)
-    try:
-        res = subprocess.run(command(tmp), capture_output=True, text=True)
-        if res.returncode != 0:
-            first = ((res.stderr or res.stdout).strip().splitlines() or ["(no output)"])[0]
-            raise FirmwareBuildError(f"{what} failed: {first}")
-        os.replace(tmp, lib)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return lib
+    """:func:`guardid.native.build_cached`, failing with a FirmwareBuildError."""
+    return native.build_cached(lib, command, what, FirmwareBuildError)
 
 
 def load_library():
