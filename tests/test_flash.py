@@ -86,7 +86,11 @@ this much host silence. Under load a busy host can be silent that long between a
 its next command; the step then runs ticks the host's ``sim://`` twin does not see (its
 reads advance the clock only when short of data), and the pty capture starts later, the
 tilt further down. Half the host's telemetry timeout (1 s) keeps the stream alive where
-the host does wait (the trajectory's last rows)."""
+the host does wait (the trajectory's last rows).
+
+WARM: each test captures through ``sim://`` first, so that the pty capture's process has
+imported what a capture needs before it opens the pty (a cold import is the longest silence
+a host has between its commands)."""
 
 
 def _serve(raw: dict):
@@ -125,6 +129,9 @@ def test_flash_through_optiboot_then_a_capture_on_the_same_pty(optiboot_pty, tmp
     row for row."""
     server, device = optiboot_pty
     runner = CliRunner()
+    traj = gentle_trajectory(tmp_path / "t.yaml")
+    sim = "sim://guard?firmware=avr&noise=0&seed=7"
+    sim_rows = _capture(runner, sim, traj, 4, tmp_path / "sim.csv")  # first: see WARM
     res = runner.invoke(cli, ["flash", "--port", server.path, "--board", "uno"])
     assert res.exit_code == 0, res.output
     from guardid.flash import build_for_robot
@@ -134,12 +141,9 @@ def test_flash_through_optiboot_then_a_capture_on_the_same_pty(optiboot_pty, tmp
     assert f"firmware id {build.firmware_id:#010x}, the new build runs" in res.output
     base, image = read_ihex(build.hex)
     assert base == 0 and device.read_flash(0, len(image)) == image
-    traj = gentle_trajectory(tmp_path / "t.yaml")
     pty_rows = _capture(runner, server.path, traj, 4, tmp_path / "pty.csv")
     header = (tmp_path / "pty.csv").read_text()
     assert f"firmware_id: {build.firmware_id}" in header
-    sim_rows = _capture(runner, "sim://guard?firmware=avr&noise=0&seed=7", traj, 4,
-                        tmp_path / "sim.csv")  # fmt: skip
     assert len(pty_rows) == round(4 / 0.015) + 1
     _same_telemetry(pty_rows, sim_rows)
 
@@ -148,6 +152,10 @@ def test_flash_through_optiboot_then_a_capture_on_the_same_pty(optiboot_pty, tmp
 def test_fake_port_cli_stk500v2_flash_then_capture(tmp_path):
     """guardid fake-port --firmware avr --bootloader stk500v2: flash --board mega, then a
     short capture on the same pty, row for row that of firmware=avr on the ATmega2560."""
+    runner = CliRunner()
+    traj = gentle_trajectory(tmp_path / "t.yaml")
+    sim = "sim://guard?firmware=avr&mcu=atmega2560&noise=0&seed=2"
+    sim_rows = _capture(runner, sim, traj, 1, tmp_path / "sim.csv")  # first: see WARM
     env = dict(os.environ)
     env.pop("GUARDID_FAKEPORT_DEVICE", None)
     cmd = [sys.executable, "-m", "guardid", "fake-port", "--firmware", "avr", "--bootloader",
@@ -157,17 +165,14 @@ def test_fake_port_cli_stk500v2_flash_then_capture(tmp_path):
     try:
         path = proc.stdout.readline().strip()
         assert path.startswith("/dev/"), proc.stderr.read()
-        runner = CliRunner()
         res = runner.invoke(cli, ["flash", "--port", path, "--board", "mega"])
         assert res.exit_code == 0, res.output
         assert "through stk500v2" in res.output and "the new build runs" in res.output
-        traj = gentle_trajectory(tmp_path / "t.yaml")
         pty_rows = _capture(runner, path, traj, 1, tmp_path / "pty.csv")
     finally:
         proc.terminate()
         proc.wait(timeout=20)
-    sim = "sim://guard?firmware=avr&mcu=atmega2560&noise=0&seed=2"
-    _same_telemetry(pty_rows, _capture(runner, sim, traj, 1, tmp_path / "sim.csv"))
+    _same_telemetry(pty_rows, sim_rows)
 
 
 def test_flash_without_avrdude_says_so_in_one_line():
