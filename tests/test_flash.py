@@ -85,12 +85,14 @@ IDLE_S = 0.5
 this much host silence. Under load a busy host can be silent that long between a reply and
 its next command; the step then runs ticks the host's ``sim://`` twin does not see (its
 reads advance the clock only when short of data), and the pty capture starts later, the
-tilt further down. Half the host's telemetry timeout (1 s) keeps the stream alive where
-the host does wait (the trajectory's last rows).
+tilt further down (a 0.25 s delay injected before the host's 3rd or 6th write did that at
+0.1 s, not at 0.5 s). Half the host's telemetry timeout (1 s) keeps the stream alive where
+the host does wait (the trajectory's last rows). The host's other way to see another tick
+sequence, a pause between its writes of one tick longer than the server's settle time, is
+closed in the host: ``Session.track`` sends the first rows' setpoints in one write.
 
-WARM: each test captures through ``sim://`` first, so that the pty capture's process has
-imported what a capture needs before it opens the pty (a cold import is the longest silence
-a host has between its commands)."""
+Each test captures through ``sim://`` first (WARM): the capture's modules are then imported
+before the pty capture opens its port."""
 
 
 def _serve(raw: dict):

@@ -364,9 +364,11 @@ class Session:
         write, next_telemetry = self._write, self.next_telemetry
         write(pack(sent & 0xFFFFFFFF, 0, *rows[0]))
         self.start_stream()
-        while sent < min(first + depth - 1, last):
-            sent += 1
-            write(pack(sent & 0xFFFFFFFF, 0, *rows[sent - first]))
+        top = min(first + depth - 1, last)  # the rest of the first depth rows, in one write
+        if sent < top:  # (so that they reach the robot within one tick over a pty too)
+            write(b"".join([pack(k & 0xFFFFFFFF, 0, *rows[k - first])
+                            for k in range(sent + 1, top + 1)]))  # fmt: skip
+            sent = top
         # run-ahead: (ticks a read may run beyond its first frame's, host silence the
         # watchdog allows [ticks]); the host last wrote at tick wrote_at or later
         limits = self._ahead_limits(depth) if run_ahead else None
