@@ -14,12 +14,32 @@
 
 #define EXACT_LIMIT (((uint64_t)1) << 53) /* every integer below is exact in a double */
 #define MAX_DECIMALS 22                    /* 10^22 is the largest power of ten exact */
-#define MAX_DIGITS 19                      /* 19 digits never overflow a uint64_t */
+#define MAX_DIGITS 19 /* 19 significant digits never overflow a uint64_t */
 
 static const double POW10[MAX_DECIMALS + 1] = {
     1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
     1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
 };
+
+/* The digits at *p (a run that ends before the limit) added to *v; returns how many.
+ * *significant counts those from the first non-zero one on: past MAX_DIGITS of them *v
+ * wraps around, which the caller refuses. */
+static long digits(const unsigned char **p, uint64_t *v, long *significant)
+{
+    const unsigned char *s = *p;
+    uint64_t x = *v;
+    long n = *significant;
+    while ((unsigned)(*s - '0') < 10u) {
+        x = x * 10u + (uint64_t)(*s - '0');
+        n += x != 0;
+        s++;
+    }
+    *v = x;
+    *significant = n;
+    n = (long)(s - *p);
+    *p = s;
+    return n;
+}
 
 /*
  * Parse whole rows of ncols fields from text[start, len), at most max_rows of them,
@@ -41,36 +61,27 @@ long guardid_csv_rows(const char *text, long start, long len, long ncols,
     while (r < max_rows && p < limit) {
         long c;
         for (c = 0; c < ncols; c++) {
-            const unsigned char *first;
             uint64_t v = 0;
+            long significant = 0;
             long decimals = 0;
             int negative = *p == '-';
             double x;
             p += negative;
-            first = p;
-            while ((unsigned)(*p - '0') < 10u) {
-                v = v * 10u + (uint64_t)(*p - '0'); /* wraps past 19 digits: refused below */
-                p++;
-            }
-            if (p == first) {
-                goto stop;
+            if (digits(&p, &v, &significant) == 0) {
+                goto stop; /* an empty field, a '+', a space, a point first, ... */
             }
             if (*p == '.') {
-                const unsigned char *point = ++p;
-                while ((unsigned)(*p - '0') < 10u) {
-                    v = v * 10u + (uint64_t)(*p - '0');
-                    p++;
-                }
-                decimals = (long)(p - point);
+                p++;
+                decimals = digits(&p, &v, &significant);
                 if (decimals == 0 || decimals > MAX_DECIMALS) {
                     goto stop;
                 }
             }
-            if (p - first - (decimals > 0) > MAX_DIGITS || v >= EXACT_LIMIT) {
-                goto stop;
+            if (significant > MAX_DIGITS || v >= EXACT_LIMIT) {
+                goto stop; /* not exact in a double */
             }
             if (*p != (c + 1 == ncols ? '\n' : ',')) {
-                goto stop;
+                goto stop; /* another byte, another field count */
             }
             p++;
             x = (double)v / POW10[decimals];
