@@ -1,18 +1,22 @@
 """Read a capture log in one pass: column names, YAML header, data rows, YAML footer.
 
-The file is read once, in blocks of :data:`BLOCK_BYTES`; each block of complete data lines
-is parsed by :mod:`guardid.log.numeric` (compiled loops) into preallocated float64 arrays,
-one (rows, joints) array per per-joint column group (``q_*``, ``i_*``, ...: what
-:meth:`LogData.joint_array` returns without a copy) and one per other column, so memory
-follows the rows kept, not the text, and a group no one keeps is freed on its own. Every
-problem is a one-line :class:`~guardid.errors.LogFormatError` naming the file and the line
-(and column): binary or gzip-compressed data, a field that is not a number, NaN or inf, a
-line with another field count, data after the footer, ticks that do not increase (two logs
-appended or a repeated tick), a column name given twice, a header naming a format version
-this reader does not know, fields separated by tabs or semicolons (guardid logs are
-comma-separated). A last row cut mid-line (a killed writer) is dropped with a
-:class:`~guardid.errors.LogWarning`, and so is a footer whose row count disagrees with the
-rows read. A UTF-8 byte-order mark before the column names (an editor's) is skipped.
+The file is read once, in blocks of :data:`BLOCK_BYTES`. The compiled reader
+(:mod:`guardid.log.csvrows`, C built once on first use) parses each block's leading rows of
+plain decimals straight into preallocated float64 arrays; the rows from the first one it
+does not recognise (and every row on a machine without a C compiler) are parsed by
+:mod:`guardid.log.numeric` (numpy's compiled loops) to the same values, bit for bit, or
+named in an error. The arrays are one (rows, joints) array per per-joint column group
+(``q_*``, ``i_*``, ...: what :meth:`LogData.joint_array` returns without a copy) and one per
+other column, so memory follows the rows kept, not the text, and a group no one keeps is
+freed on its own. Every problem is a one-line :class:`~guardid.errors.LogFormatError` naming
+the file and the line (and column): binary or gzip-compressed data, a field that is not a
+number, NaN or inf, a line with another field count, data after the footer, ticks that do
+not increase (two logs appended or a repeated tick), a column name given twice, a header
+naming a format version this reader does not know, fields separated by tabs or semicolons
+(guardid logs are comma-separated). A last row cut mid-line (a killed writer) is dropped
+with a :class:`~guardid.errors.LogWarning`, and so is a footer whose row count disagrees
+with the rows read. A UTF-8 byte-order mark before the column names (an editor's) is
+skipped.
 """
 
 from __future__ import annotations
