@@ -204,3 +204,18 @@ def test_a_source_that_does_not_build_falls_back_with_a_warning(tmp_path, monkey
             2.0, -0.5]  # fmt: skip
     finally:
         csvrows.library.cache_clear()
+
+
+@needs_cc
+def test_a_cache_it_cannot_write_falls_back_with_a_warning(tmp_path, monkeypatch, caplog):
+    """The cache directory under a file (as a read-only home would): no library, numpy's
+    path, a warning, and not read_log's "cannot read" (an OSError inside the read)."""
+    (tmp_path / "file").write_text("")
+    monkeypatch.setenv("GUARDID_CACHE_DIR", str(tmp_path / "file" / "cache"))
+    csvrows.library.cache_clear()
+    try:
+        got = read_log(_log(tmp_path, ["1,2,3,4\n", "2,-0.5,0,1\n"]))
+        assert got.columns["a_V"].tolist() == [2.0, -0.5]
+        assert "compiled log reader unavailable" in caplog.text
+    finally:
+        csvrows.library.cache_clear()

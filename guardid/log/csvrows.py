@@ -2,15 +2,14 @@
 
 :func:`parse_rows` reads the leading rows of a block of text that are plain decimals
 (``-?[0-9]+(.[0-9]+)?``, ``,`` between fields, ``\\n`` after each row, integers below 2^53
-once the point is dropped, at most 22 decimals) straight into the caller's float64
-columns, each value bit for bit ``float(text)`` (the digits as an integer divided by
-10^decimals: both exact, the quotient correctly rounded). It stops at the first row it
-does not recognise (a NaN, an empty field, a short line, a comment, ...) and says how far
-it got, so that the caller reads the rest on its Python path (:mod:`guardid.log.numeric`),
-with its one-line errors. The C is built once into guardid's cache
-(:func:`guardid.native.cached_library`) on first use; without a compiler, or when the build
-fails (logged as a warning), :func:`library` is None and the Python path reads everything,
-to the same values.
+once the point is dropped, at most 22 decimals) straight into the caller's float64 columns,
+each value bit for bit ``float(text)`` (the digits as an integer divided by 10^decimals:
+both exact, the quotient correctly rounded). It stops at the first row it does not recognise
+(a NaN, an empty field, a short line, a comment, ...) and says how far it got, so that the
+caller reads the rest on its Python path (:mod:`guardid.log.numeric`), with its one-line
+errors. The C is built once into guardid's cache (:func:`guardid.native.cached_library`) on
+first use; without a compiler, or when the build fails (logged as a warning),
+:func:`library` is None and the Python path reads everything, to the same values.
 """
 
 from __future__ import annotations
