@@ -8,8 +8,9 @@ both exact, the quotient correctly rounded). It stops at the first row it does n
 (a NaN, an empty field, a short line, a comment, ...) and says how far it got, so that the
 caller reads the rest on its Python path (:mod:`guardid.log.numeric`), with its one-line
 errors. The C is built once into guardid's cache (:func:`guardid.native.cached_library`) on
-first use; without a compiler, or when the build fails (logged as a warning),
-:func:`library` is None and the Python path reads everything, to the same values.
+first use; without a compiler, or when the build fails or the cache cannot be written
+(logged as a warning), :func:`library` is None and the Python path reads everything, to the
+same values.
 """
 
 from __future__ import annotations
@@ -33,12 +34,12 @@ def library():
 
     try:
         lib = cached_library("csvrows", [SOURCE])
-    except NativeBuildError as exc:
+        fn = None if lib is None else ctypes.CDLL(str(lib)).guardid_csv_rows
+    except (NativeBuildError, OSError) as exc:  # a failed build, a cache it cannot write
         _LOG.warning("compiled log reader unavailable (%s): reading logs in numpy", exc)
         return None
-    if lib is None:
+    if fn is None:
         return None
-    fn = ctypes.CDLL(str(lib)).guardid_csv_rows
     long, ptr = ctypes.c_long, ctypes.c_void_p
     fn.restype = long
     fn.argtypes = [ctypes.c_char_p, long, long, long, ptr, ptr, long, ctypes.POINTER(long)]
