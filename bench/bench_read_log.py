@@ -8,11 +8,12 @@ longer logs. Each round reads the log with ``guardid.read_log`` and with
 and worst, and the ratio of the medians. The import of pandas is not counted (it is done
 before the first round).
 
-Then, once each: the path that read the log (``fixed``, ``plain`` or ``checked``: the DEBUG
-line of the ``guardid.log`` logger), the peak of memory traced during one ``read_log``
-(``tracemalloc``; numpy's arrays are traced) against the file's size and the float64 arrays
-kept, and an independent check of the values: every cell equal, bit for bit, to what
-Python's ``float()`` makes of its text (and whether pandas' values are the same).
+Then, once each: the paths that read the log (``compiled``, ``fixed``, ``plain``,
+``checked``: the DEBUG line of the ``guardid.log`` logger), the peak of memory traced during
+one ``read_log`` (``tracemalloc``; numpy's arrays are traced) against the file's size and
+the float64 arrays kept, and an independent check of the values: every cell equal, bit for
+bit, to what Python's ``float()`` makes of its text (and whether pandas' values are the
+same).
 
     python bench/bench_read_log.py [--hours 1 4] [--runs 7] [--cache DIR]
 """

@@ -19,7 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from guardid.errors import LogFormatError, LogWarning
-from guardid.log import read_log
+from guardid.log import csvrows, read_log
 from guardid.log import reader as reader_module
 from guardid.log.numeric import parse_plain
 
@@ -40,6 +40,18 @@ def sim_log(tmp_path_factory) -> Path:
     log = d / "run.csv"
     _cli("capture", "--trajectory", str(traj), "--duration", "20", "--quiet", "-o", str(log))
     return log
+
+
+@pytest.fixture(params=["compiled", "numpy"])
+def body_reader(request, monkeypatch) -> str:
+    """Which reader reads the data rows: the compiled one (csvrows.c, handing what it does
+    not recognise to numpy's path; skipped without a compiler) or numpy's path alone (as on
+    a machine without a compiler)."""
+    if request.param == "numpy":
+        monkeypatch.setattr(csvrows, "library", lambda: None)
+    elif csvrows.library() is None:
+        pytest.skip("needs a C compiler")
+    return request.param
 
 
 def reference(text: str):
@@ -64,7 +76,7 @@ def write(tmp_path, name, text) -> Path:
     return path
 
 
-def test_a_captured_log_reads_as_float_reads_it(sim_log):
+def test_a_captured_log_reads_as_float_reads_it(sim_log, body_reader):
     text = sim_log.read_text()
     names, rows, comments = reference(text)
     data = read_log(sim_log)
@@ -77,7 +89,9 @@ def test_a_captured_log_reads_as_float_reads_it(sim_log):
 
 
 @pytest.mark.parametrize("block", [97, 1000, 65536])
-def test_any_block_size_gives_the_same_rows_and_line_numbers(sim_log, tmp_path, block, monkeypatch):
+def test_any_block_size_gives_the_same_rows_and_line_numbers(
+    sim_log, tmp_path, block, monkeypatch, body_reader
+):
     monkeypatch.setattr(reader_module, "BLOCK_BYTES", block)
     whole = read_log(sim_log)
     head, data, foot = parts(sim_log.read_text())
@@ -118,7 +132,7 @@ def test_fast_path_is_float_or_declines(cells):
         assert np.array_equal(rows, want) and np.array_equal(np.signbit(rows), np.signbit(want))
 
 
-def test_other_number_syntax_reads_through_the_general_path(tmp_path):
+def test_other_number_syntax_reads_through_the_general_path(tmp_path, body_reader):
     text = "tick,a,b\n# h: 1\n1,1e-3,+2.5\n2, 7 ,-.25\n3,1E2,0x\n"
     with pytest.raises(LogFormatError, match=r"line 5: not a number in column 'b'"):
         read_log(write(tmp_path, "x.csv", text))
@@ -131,7 +145,8 @@ def test_other_number_syntax_reads_through_the_general_path(tmp_path):
 
 
 def _damaged(sim_log, kind):
-    """(text or bytes, expected message pattern) of the log damaged as ``kind``."""
+    """(text or bytes, expected message pattern, data rows before the damage) of the log
+    damaged as ``kind`` (rows before: what a reader of rows can take before it stops)."""
     text = sim_log.read_text()
     head, data, foot = parts(text)
     n0 = len(head)
@@ -139,23 +154,30 @@ def _damaged(sim_log, kind):
         cells = data[300].split(",")
         cells[4] = kind
         bad = data[:300] + [",".join(cells)] + data[301:]
-        return "".join(head + bad + foot), rf"line {n0 + 301}: column 'q_pan_rad'.*not finite"
+        return "".join(head + bad + foot), rf"line {n0 + 301}: column 'q_pan_rad'.*not finite", 300
     if kind == "gzip":
-        return gzip.compress(text.encode()), r"gzip-compressed"
+        return gzip.compress(text.encode()), r"gzip-compressed", 0
     if kind == "binary":
-        return np.random.default_rng(5).bytes(5000), r"binary data"
+        return np.random.default_rng(5).bytes(5000), r"binary data", 0
     if kind == "ticks restart":  # two logs' rows one after the other
-        return "".join(head + data + data + foot), (
-            rf"line {n0 + len(data) + 1}: tick \d+ after \d+: the ticks restart"
-        )
+        return (
+            "".join(head + data + data + foot),
+            (rf"line {n0 + len(data) + 1}: tick \d+ after \d+: the ticks restart"),
+            2 * len(data),
+        )  # every row is well formed: the ticks are checked once read
     if kind == "second log appended":  # a killed log, then a whole one
-        return "".join(head + data) + text, rf"line {n0 + len(data) + 1}: a second log's column"
+        pattern = rf"line {n0 + len(data) + 1}: a second log's column"
+        return "".join(head + data) + text, pattern, len(data)
     if kind == "data after footer":
-        return text + data[0], rf"line {len(text.splitlines()) + 1}: data after the footer"
+        return (
+            text + data[0],
+            rf"line {len(text.splitlines()) + 1}: data after the footer",
+            len(data),
+        )
     if kind == "field missing":
         cells = data[50].split(",")
         bad = data[:50] + [",".join(cells[:-2] + cells[-1:])] + data[51:]
-        return "".join(head + bad + foot), rf"line {n0 + 51}: 12 fields, expected 13"
+        return "".join(head + bad + foot), rf"line {n0 + 51}: 12 fields, expected 13", 50
     raise AssertionError(kind)
 
 
@@ -164,18 +186,26 @@ KINDS = ["nan", "inf", "-inf", "gzip", "binary", "ticks restart", "second log ap
 
 
 @pytest.mark.parametrize("kind", KINDS)
-def test_damaged_log_is_one_line_error_naming_file_and_line(sim_log, tmp_path, kind):
-    content, pattern = _damaged(sim_log, kind)
+def test_damaged_log_is_one_line_error_naming_file_and_line(
+    sim_log, tmp_path, kind, body_reader, monkeypatch
+):
+    """The same one-line error on both readers; the compiled one reads the rows before the
+    damage and hands the rest of its block to numpy's path, which names the line."""
+    content, pattern, before = _damaged(sim_log, kind)
     path = write(tmp_path, "damaged.csv", content)
+    compiled = []
+    real = csvrows.parse_rows
+    monkeypatch.setattr(csvrows, "parse_rows", lambda *a: compiled.append(real(*a)) or compiled[-1])
     with pytest.raises(LogFormatError) as info:
         read_log(path)
     msg = str(info.value)
     assert "\n" not in msg and msg.startswith(f"{path}: ") and re.search(pattern, msg), msg
+    assert sum(rows for rows, _ in compiled) == (before if body_reader == "compiled" else 0)
 
 
 @pytest.mark.parametrize("kind", ["nan", "gzip", "ticks restart"])
 def test_identify_prints_the_error_as_one_line(sim_log, tmp_path, kind):
-    content, pattern = _damaged(sim_log, kind)
+    content, pattern, _ = _damaged(sim_log, kind)
     path = write(tmp_path, "damaged.csv", content)
     out = _cli("identify", str(path), "--method", "ls", check=False)
     assert out.returncode == 2 and "Traceback" not in out.stderr
@@ -186,7 +216,7 @@ def test_identify_prints_the_error_as_one_line(sim_log, tmp_path, kind):
 
 
 @pytest.mark.parametrize("cut_at", [1, 7, 40, -2])
-def test_cut_last_row_is_dropped_with_a_warning(sim_log, tmp_path, cut_at):
+def test_cut_last_row_is_dropped_with_a_warning(sim_log, tmp_path, cut_at, body_reader):
     head, data, _ = parts(sim_log.read_text())
     keep = data[:-1]
     cut = data[-1][: cut_at % len(data[-1])]  # 1 byte, mid-number, ..., all but the '\n'
@@ -198,7 +228,7 @@ def test_cut_last_row_is_dropped_with_a_warning(sim_log, tmp_path, cut_at):
     assert np.array_equal(np.column_stack(list(got.columns.values())), want)
 
 
-def test_log_ending_on_a_complete_row_has_no_warning(sim_log, tmp_path, recwarn):
+def test_log_ending_on_a_complete_row_has_no_warning(sim_log, tmp_path, recwarn, body_reader):
     head, data, _ = parts(sim_log.read_text())
     got = read_log(write(tmp_path, "killed.csv", "".join(head + data)))
     assert len(got.columns["tick"]) == len(data) and got.footer is None
@@ -258,7 +288,7 @@ def test_identify_reads_each_log_once(sim_log, monkeypatch):
     assert "tracking" in result.output and len(reads) == 1
 
 
-def test_memory_follows_the_rows_kept_not_the_text(sim_log, tmp_path, monkeypatch):
+def test_memory_follows_the_rows_kept_not_the_text(sim_log, tmp_path, monkeypatch, body_reader):
     monkeypatch.setattr(reader_module, "BLOCK_BYTES", 1 << 16)
     head, data, foot = parts(sim_log.read_text())
     span = len(data)
@@ -408,19 +438,28 @@ def test_numbers_beyond_int64_are_not_clipped():
     assert parse_plain(b"9007199254740991,-1\n", 2).tolist() == [[2.0**53 - 1, -1.0]]
 
 
-def test_the_path_that_read_a_log_is_logged(sim_log, tmp_path, caplog):
-    """A guardid log reads on the fixed path; a log whose decimals vary row by row on the
-    plain path, to the same values; stdout and stderr stay clean (DEBUG log only)."""
+def test_the_path_that_read_a_log_is_logged(sim_log, tmp_path, caplog, monkeypatch):
+    """A guardid log reads on the compiled path (with a compiler), else on the fixed path;
+    a log whose decimals vary row by row on the compiled or the plain path, to the same
+    values; stdout and stderr stay clean (DEBUG log only)."""
     caplog.set_level("DEBUG", logger="guardid.log")
-    n = len(read_log(sim_log).columns["tick"])
-    assert f"{{'fixed': {n}, 'plain': 0, 'checked': 0}}" in caplog.text
-    caplog.clear()
     head, data, foot = parts(sim_log.read_text())
     varied = [re.sub(r"\.(\d{3}),", r".\g<1>0,", ln, count=1) if k % 2 else ln
               for k, ln in enumerate(data)]  # fmt: skip
     path = write(tmp_path, "varied.csv", "".join(head + varied + foot))
+    n = len(data)
+    if csvrows.library() is not None:
+        for log in (sim_log, path):
+            caplog.clear()
+            read_log(log)
+            assert f"{{'compiled': {n}, 'fixed': 0, 'plain': 0, 'checked': 0}}" in caplog.text
+    monkeypatch.setattr(csvrows, "library", lambda: None)  # no compiler: numpy's paths
+    caplog.clear()
+    assert len(read_log(sim_log).columns["tick"]) == n
+    assert f"{{'compiled': 0, 'fixed': {n}, 'plain': 0, 'checked': 0}}" in caplog.text
+    caplog.clear()
     got = read_log(path)
-    assert f"{{'fixed': 0, 'plain': {n}, 'checked': 0}}" in caplog.text
+    assert f"{{'compiled': 0, 'fixed': 0, 'plain': {n}, 'checked': 0}}" in caplog.text
     names, rows, _ = reference(path.read_text())
     for c, name in enumerate(names):
         assert np.array_equal(got.columns[name], rows[:, c]), name

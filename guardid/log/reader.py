@@ -1,18 +1,22 @@
 """Read a capture log in one pass: column names, YAML header, data rows, YAML footer.
 
-The file is read once, in blocks of :data:`BLOCK_BYTES`; each block of complete data lines
-is parsed by :mod:`guardid.log.numeric` (compiled loops) into preallocated float64 arrays,
-one (rows, joints) array per per-joint column group (``q_*``, ``i_*``, ...: what
-:meth:`LogData.joint_array` returns without a copy) and one per other column, so memory
-follows the rows kept, not the text, and a group no one keeps is freed on its own. Every
-problem is a one-line :class:`~guardid.errors.LogFormatError` naming the file and the line
-(and column): binary or gzip-compressed data, a field that is not a number, NaN or inf, a
-line with another field count, data after the footer, ticks that do not increase (two logs
-appended or a repeated tick), a column name given twice, a header naming a format version
-this reader does not know, fields separated by tabs or semicolons (guardid logs are
-comma-separated). A last row cut mid-line (a killed writer) is dropped with a
-:class:`~guardid.errors.LogWarning`, and so is a footer whose row count disagrees with the
-rows read. A UTF-8 byte-order mark before the column names (an editor's) is skipped.
+The file is read once, in blocks of :data:`BLOCK_BYTES`. The compiled reader
+(:mod:`guardid.log.csvrows`, C built once on first use) parses each block's leading rows of
+plain decimals straight into preallocated float64 arrays; the rows from the first one it
+does not recognise (and every row on a machine without a C compiler) are parsed by
+:mod:`guardid.log.numeric` (numpy's compiled loops) to the same values, bit for bit, or
+named in an error. The arrays are one (rows, joints) array per per-joint column group
+(``q_*``, ``i_*``, ...: what :meth:`LogData.joint_array` returns without a copy) and one per
+other column, so memory follows the rows kept, not the text, and a group no one keeps is
+freed on its own. Every problem is a one-line :class:`~guardid.errors.LogFormatError` naming
+the file and the line (and column): binary or gzip-compressed data, a field that is not a
+number, NaN or inf, a line with another field count, data after the footer, ticks that do
+not increase (two logs appended or a repeated tick), a column name given twice, a header
+naming a format version this reader does not know, fields separated by tabs or semicolons
+(guardid logs are comma-separated). A last row cut mid-line (a killed writer) is dropped
+with a :class:`~guardid.errors.LogWarning`, and so is a footer whose row count disagrees
+with the rows read. A UTF-8 byte-order mark before the column names (an editor's) is
+skipped.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ import numpy as np
 import yaml
 
 from guardid.errors import LogFormatError, LogWarning
+from guardid.log import csvrows
 from guardid.log.csvlog import KNOWN_LOG_VERSIONS, LOG_VERSION_KEY, per_joint_column
 from guardid.log.numeric import RowError, decimals_of, parse_block, parse_lines
 
@@ -136,11 +141,20 @@ class _Rows:
         self.n = 0
         self.file_bytes = file_bytes
         self._segments: list[tuple[int, int | np.ndarray]] = []  # (first row, line(s))
+        self._bases: np.ndarray | None = None  # see targets()
+        self._strides = np.zeros(0, dtype=np.int64)
 
     def add(self, rows: np.ndarray, lines: int | np.ndarray, nbytes: int) -> None:
         """Append ``rows`` (m, ncols) parsed from ``nbytes`` of text; ``lines``: the first
         row's line number when the rows are consecutive lines, else each row's."""
         m = len(rows)
+        self.reserve(m, nbytes)
+        for cols, block in zip(self.cols, self.blocks, strict=True):
+            block[self.n : self.n + m] = rows[:, cols]
+        self.commit(m, lines)
+
+    def reserve(self, m: int, nbytes: int) -> None:
+        """Room for ``m`` more rows (parsed from ``nbytes`` of text) in every store."""
         if self.n + m > self.blocks[0].shape[0]:
             if self.n == 0:  # rows in the file, from this block's bytes per row, +2 %
                 want = int(m * self.file_bytes / max(nbytes, 1) * 1.02) + 16
@@ -150,10 +164,28 @@ class _Rows:
                 grown = np.empty((max(self.n + m, want), old.shape[1]))
                 grown[: self.n] = old[: self.n]
                 self.blocks[g] = grown
-        for cols, block in zip(self.cols, self.blocks, strict=True):
-            block[self.n : self.n + m] = rows[:, cols]
+            self._bases = None
+
+    def commit(self, m: int, lines: int | np.ndarray) -> None:
+        """Count ``m`` rows written in place after the last (see :meth:`add`'s ``lines``)."""
         self._segments.append((self.n, lines))
         self.n += m
+
+    def room(self) -> int:
+        """Rows that fit in the stores after the :attr:`n` kept."""
+        return self.blocks[0].shape[0] - self.n
+
+    def targets(self) -> tuple[np.ndarray, np.ndarray]:
+        """(address of row :attr:`n` of each column in file order, its row stride in
+        float64s): where the compiled reader writes the next rows (after :meth:`reserve`)."""
+        if self._bases is None:  # each column's row 0 (until a store grows)
+            self._bases = np.zeros(len(self.names), dtype=np.uintp)
+            self._strides = np.zeros(len(self.names), dtype=np.int64)
+            for members, block in zip(self.members, self.blocks, strict=True):
+                address, k = block.__array_interface__["data"][0], block.shape[1]
+                for j, c in enumerate(members):
+                    self._bases[c], self._strides[c] = address + 8 * j, k
+        return self._bases + (8 * self.n) * self._strides.astype(np.uintp), self._strides
 
     def space(self, m: int, nbytes: int) -> np.ndarray:  # noqa: ARG002 (the parsers' signature)
         """A writable (m, ncols) buffer for the next ``m`` rows, which :meth:`add` then
@@ -189,7 +221,7 @@ class _Reader:
         self.line = 0  # number of the last line consumed
         self.warnings: list[str] = []
         self.decimals = None  # each column's decimals, from the first data row (fixed path)
-        self.path_rows = {"fixed": 0, "plain": 0, "checked": 0}  # rows read by each path
+        self.path_rows = {"compiled": 0, "fixed": 0, "plain": 0, "checked": 0}  # rows by path
 
     def _text(self, raw: bytes, no: int) -> str:
         if b"\x00" in raw:
@@ -243,11 +275,14 @@ class _Reader:
     def _body(self, names: list[str], buf: bytes, store: _Rows) -> list[str] | None:
         """Parse data lines into ``store``; return the footer's lines (None: no footer)."""
         ncols = len(names)
+        compiled = csvrows.library()
         while True:
             more = self.f.read(BLOCK_BYTES)
             buf += more
+            if compiled is not None:
+                buf = self._parse_compiled(compiled, buf, store)
             cut = buf.rfind(b"\n") + 1
-            if more and self._parse_plain(buf[:cut], ncols, store):
+            if more and (not cut or self._parse_plain(buf[:cut], ncols, store)):
                 buf = buf[cut:]
                 continue
             start = _comment_start(buf)
@@ -270,6 +305,27 @@ class _Reader:
             else:
                 self._parse(buf, names, store)
             return None
+
+    def _parse_compiled(self, fn, buf: bytes, store: _Rows) -> bytes:
+        """Read the leading rows of ``buf`` that the compiled reader recognises into
+        ``store``; return the rest (from the first row it stopped at, or the cut line)."""
+        done = 0
+        while True:
+            if store.room() == 0 or store.n == 0:  # the first rows size the store
+                need = buf.count(b"\n", done)
+                if not need:
+                    break
+                store.reserve(need, len(buf) - done)
+            room = store.room()
+            rows, end = csvrows.parse_rows(fn, buf, done, *store.targets(), room)
+            if rows:
+                store.commit(rows, self.line + 1)
+                self.line += rows
+                self.path_rows["compiled"] += rows
+            done = end
+            if rows < room:  # stopped at a row it does not read, or at the cut line
+                break
+        return buf[done:] if done else buf
 
     def _parse_plain(self, block: bytes, ncols: int, store: _Rows) -> bool:
         """Parse ``block`` on the fast path; False (nothing consumed) when it cannot."""
