@@ -35,6 +35,57 @@ static uint32_t crc32_table(const uint8_t *data, size_t len)
 
 #define MAX_VALS 64
 
+/* The configuration of a message's frames (see encode): 0 when cfg is not one. */
+static Py_ssize_t read_cfg(const char *bytes, Py_ssize_t len, int64_t *cfg)
+{
+    Py_ssize_t n_vals;
+    if (len < 24 || (size_t)len > sizeof(int64_t) * (3 + 2 * MAX_VALS))
+        return 0;
+    memcpy(cfg, bytes, (size_t)len);
+    n_vals = (Py_ssize_t)cfg[2];
+    return n_vals > 0 && n_vals <= MAX_VALS && len == 8 * (3 + 2 * n_vals) ? n_vals : 0;
+}
+
+/* v[k] = item k of the sequence items (ints), checked against the ranges of cfg; 0 when
+   one is not an int or out of range. */
+static int read_vals(const int64_t *cfg, Py_ssize_t k0, PyObject *items, int64_t *v)
+{
+    Py_ssize_t k, n = PySequence_Fast_GET_SIZE(items), n_vals = (Py_ssize_t)cfg[2];
+    PyObject **obj = PySequence_Fast_ITEMS(items);
+    if (k0 + n != n_vals)
+        return 0;
+    for (k = 0; k < n; ++k) {
+        int overflow = 0;
+        long long x;
+        if (!PyLong_Check(obj[k]))
+            return 0;
+        x = PyLong_AsLongLongAndOverflow(obj[k], &overflow);
+        if (overflow || x < cfg[3 + k0 + k] || x > cfg[3 + n_vals + k0 + k])
+            return 0;
+        v[k0 + k] = (int64_t)x;
+    }
+    return 1;
+}
+
+/* The wire frame (delimiter included) of values v numbered seq into out (GP_MAX_WIRE
+   bytes); its length, 0 if gp_flat_pack refuses. */
+static size_t frame_of(const int64_t *cfg, const int64_t *v, unsigned seq, uint8_t *out)
+{
+    uint8_t raw[GP_MAX_RAW], payload[GP_MAX_PAYLOAD];
+    int len = gp_flat_pack((uint8_t)cfg[0], v, (unsigned)cfg[1], payload);
+    size_t n;
+    if (len < 0 || (size_t)len > GP_MAX_PAYLOAD)
+        return 0;
+    raw[0] = (uint8_t)GP_FRAME_VERSION;
+    raw[1] = (uint8_t)cfg[0];
+    gp_put_u16(raw + 2, seq & 0xFFFFu);
+    memcpy(raw + GP_HEADER_LEN, payload, (size_t)len);
+    gp_put_u32(raw + GP_HEADER_LEN + len, crc32_table(raw, GP_HEADER_LEN + (size_t)len));
+    n = gp_cobs_encode(raw, GP_MIN_RAW + (size_t)len, out);
+    out[n] = 0u;
+    return n + 1u;
+}
+
 /* encode(cfg, seq, values) -> bytes | None: the wire frame (delimiter included) of one
    message from its flattened values (a tuple of ints), numbered seq. cfg: int64s packed
    native: message id, joint count, value count n, the n smallest and n largest values.
@@ -43,44 +94,76 @@ static uint32_t crc32_table(const uint8_t *data, size_t len)
 static PyObject *py_encode(PyObject *self, PyObject *args)
 {
     const char *cfg_bytes;
-    Py_ssize_t cfg_len, k, n_vals;
+    Py_ssize_t cfg_len;
     unsigned int seq;
     PyObject *vals;
     int64_t cfg[3 + 2 * MAX_VALS], v[MAX_VALS];
-    uint8_t raw[GP_MAX_RAW], payload[GP_MAX_PAYLOAD], out[GP_MAX_WIRE];
-    int len;
+    uint8_t out[GP_MAX_WIRE];
     size_t n;
     (void)self;
     if (!PyArg_ParseTuple(args, "y#IO!", &cfg_bytes, &cfg_len, &seq, &PyTuple_Type, &vals))
         return NULL;
-    if (cfg_len < 24 || (size_t)cfg_len > sizeof cfg)
+    if (!read_cfg(cfg_bytes, cfg_len, cfg) || !read_vals(cfg, 0, vals, v))
         Py_RETURN_NONE;
-    memcpy(cfg, cfg_bytes, (size_t)cfg_len);
-    n_vals = (Py_ssize_t)cfg[2];
-    if (n_vals > MAX_VALS || PyTuple_GET_SIZE(vals) != n_vals || cfg_len != 8 * (3 + 2 * n_vals))
+    n = frame_of(cfg, v, seq, out);
+    if (n == 0)
         Py_RETURN_NONE;
-    for (k = 0; k < n_vals; ++k) {
-        PyObject *o = PyTuple_GET_ITEM(vals, k);
-        int overflow = 0;
-        long long x;
-        if (!PyLong_Check(o))
+    return PyBytes_FromStringAndSize((const char *)out, (Py_ssize_t)n);
+}
+
+/* encode_rows(cfg, seq, tick, flags, rows, start, count) -> bytes | None: the frames of
+   count messages numbered seq, seq + 1, ... whose values are (tick + i) mod 2**32, flags,
+   then the ints of rows[start + i] (a streamed SETPOINT or SETPOINT_FF per tick); None as
+   encode, nothing encoded then. */
+static PyObject *py_encode_rows(PyObject *self, PyObject *args)
+{
+    const char *cfg_bytes;
+    Py_ssize_t cfg_len, start, count, i;
+    unsigned int seq;
+    unsigned long long tick, flags;
+    PyObject *rows, *result;
+    int64_t cfg[3 + 2 * MAX_VALS], v[MAX_VALS];
+    char *out;
+    size_t o = 0;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "y#IKKOnn", &cfg_bytes, &cfg_len, &seq, &tick, &flags, &rows,
+                          &start, &count))
+        return NULL;
+    if (!read_cfg(cfg_bytes, cfg_len, cfg) || cfg[2] < 3 || count < 0)
+        Py_RETURN_NONE;
+    result = PyBytes_FromStringAndSize(NULL, count * (Py_ssize_t)GP_MAX_WIRE);
+    if (result == NULL)
+        return NULL;
+    out = PyBytes_AS_STRING(result);
+    for (i = 0; i < count; ++i) {
+        PyObject *row = PySequence_GetItem(rows, start + i), *items;
+        int ok;
+        size_t n = 0;
+        if (row == NULL) {
+            Py_DECREF(result);
+            return NULL;
+        }
+        items = PySequence_Fast(row, "a row must be a sequence");
+        Py_DECREF(row);
+        if (items == NULL) {
+            Py_DECREF(result);
+            return NULL;
+        }
+        v[0] = (int64_t)((tick + (unsigned long long)i) & 0xFFFFFFFFull);
+        v[1] = (int64_t)flags;
+        ok = v[1] >= cfg[4] && v[1] <= cfg[4 + cfg[2]] && read_vals(cfg, 2, items, v);
+        Py_DECREF(items);
+        if (ok)
+            n = frame_of(cfg, v, seq + (unsigned)i, (uint8_t *)out + o);
+        if (n == 0) {
+            Py_DECREF(result);
             Py_RETURN_NONE;
-        x = PyLong_AsLongLongAndOverflow(o, &overflow);
-        if (overflow || x < cfg[3 + k] || x > cfg[3 + n_vals + k])
-            Py_RETURN_NONE;
-        v[k] = (int64_t)x;
+        }
+        o += n;
     }
-    len = gp_flat_pack((uint8_t)cfg[0], v, (unsigned)cfg[1], payload);
-    if (len < 0 || (size_t)len > GP_MAX_PAYLOAD)
-        Py_RETURN_NONE;
-    raw[0] = (uint8_t)GP_FRAME_VERSION;
-    raw[1] = (uint8_t)cfg[0];
-    gp_put_u16(raw + 2, seq & 0xFFFFu);
-    memcpy(raw + GP_HEADER_LEN, payload, (size_t)len);
-    gp_put_u32(raw + GP_HEADER_LEN + len, crc32_table(raw, GP_HEADER_LEN + (size_t)len));
-    n = gp_cobs_encode(raw, GP_MIN_RAW + (size_t)len, out);
-    out[n] = 0u;
-    return PyBytes_FromStringAndSize((const char *)out, (Py_ssize_t)n + 1);
+    if (_PyBytes_Resize(&result, (Py_ssize_t)o) != 0)
+        return NULL;
+    return result;
 }
 
 /* tuple.__new__(cls, items), items stolen. */
@@ -194,6 +277,7 @@ static PyObject *py_scan(PyObject *self, PyObject *args)
 
 static PyMethodDef methods[] = {
     {"encode", py_encode, METH_VARARGS, "One wire frame from flattened values, or None."},
+    {"encode_rows", py_encode_rows, METH_VARARGS, "Streamed setpoint frames from rows."},
     {"scan", py_scan, METH_VARARGS, "The leading valid frames of one kind in a chunk."},
     {NULL, NULL, 0, NULL},
 };

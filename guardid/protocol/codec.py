@@ -209,10 +209,7 @@ class Encoder:
 
             return frame
         # the C codec: values in their fields' ranges, else the Python path says why
-        fields = list(spec.fixed) + [f for f in spec.per_joint for _ in range(n)]
-        cfg = array("q", [mid, n, len(fields)] + [f.lo for f in fields]
-                    + [f.hi for f in fields]).tobytes()  # fmt: skip
-        encode = fast.encode
+        cfg, encode = _fast_config(spec, n), fast.encode
 
         def frame(*values) -> bytes:
             seq = self.seq
@@ -221,6 +218,38 @@ class Encoder:
             return out
 
         return frame
+
+    def rows_packer(self, cls: type, n_joints: int) -> Callable[..., bytes]:
+        """``frames(tick, flags, rows, start, count) -> bytes``: the wire frames of ``count``
+        messages of ``cls`` (a streamed SETPOINT or SETPOINT_FF: tick, flags, then per-joint
+        values) for ticks ``tick``, ``tick + 1``, ... (mod 2**32), the values after the
+        flags being ``rows[start + i]`` (ints in wire order), numbered by this encoder: the
+        bytes of :meth:`packer` frame after frame, in one call of the C codec when built.
+        :class:`ValueError` for a value out of range (the frames before it numbered)."""
+        pack = self.packer(cls, n_joints)
+        fast = fastcodec.module()
+        spec = cls.SPEC
+        if fast is not None:
+            cfg, encode_rows = _fast_config(spec, n_joints), fast.encode_rows
+
+        def frames(tick: int, flags: int, rows, start: int, count: int) -> bytes:
+            if fast is not None:
+                out = encode_rows(cfg, self.seq, tick, flags, rows, start, count)
+                if out is not None:
+                    self.seq = (self.seq + count) & 0xFFFF
+                    return out
+            return b"".join([pack((tick + i) & 0xFFFFFFFF, flags, *rows[start + i])
+                             for i in range(count)])  # fmt: skip
+
+        return frames
+
+
+def _fast_config(spec: MessageSpec, n_joints: int) -> bytes:
+    """The C codec's description of a message's frames: id, joint count, value count n,
+    the n smallest and the n largest values (int64s)."""
+    fields = list(spec.fixed) + [f for f in spec.per_joint for _ in range(n_joints)]
+    lo, hi = [f.lo for f in fields], [f.hi for f in fields]
+    return array("q", [spec.msg_id, n_joints, len(fields), *lo, *hi]).tobytes()
 
 
 def to_si(msg: tuple) -> dict:

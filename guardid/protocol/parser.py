@@ -17,6 +17,7 @@ first other segment, so the frames and the counters are the same either way.
 from __future__ import annotations
 
 import zlib
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, fields
 
@@ -92,6 +93,7 @@ class FrameParser:
         fast = fastcodec.module()
         self._scan = None if fast is None else fast.scan
         self._kind: tuple[int, int] | None = None  # (msg_id, raw length) of the last frame
+        self._extend: dict[int, Callable | None] = {}  # msg_id -> extend of a route's sink
 
     def route(self, msg_id: int, cls: type, sink: Callable[[tuple], object]) -> None:
         """Hand valid frames of ``msg_id`` to ``sink(msg)`` as they are parsed, ``msg``
@@ -101,6 +103,8 @@ class FrameParser:
         for key, (st, _, get) in DECODERS.items():
             if key[0] == msg_id:
                 self._table[key] = (st.unpack, cls, get, sink)
+        owner = getattr(sink, "__self__", None)  # a list's or deque's append: extend, at once
+        self._extend[msg_id] = owner.extend if type(owner) in (list, deque) else None
 
     def reset_sequence(self) -> None:
         """Forget the expected sequence numbers (e.g. after the peer was reset)."""
@@ -198,7 +202,11 @@ class FrameParser:
         if sink is None:
             out += frames
         else:
-            for msg in frames:
-                sink(msg)
+            extend = self._extend[mid]
+            if extend is not None and sink.__name__ == "append":
+                extend(frames)
+            else:
+                for msg in frames:
+                    sink(msg)
             self.stats.frames += len(frames)
         return chunk[used:]
