@@ -166,42 +166,67 @@ static PyObject *py_encode_rows(PyObject *self, PyObject *args)
     return result;
 }
 
-/* tuple.__new__(cls, items), items stolen. */
-static PyObject *make(PyObject *cls, PyObject *items)
+/* An empty instance of cls (a tuple type) of n items, filled by the caller: what
+   tuple.__new__(cls, items) makes, without the items' tuple. */
+static PyObject *new_tuple(PyObject *cls, Py_ssize_t n)
 {
-    PyObject *args, *obj;
-    if (items == NULL)
-        return NULL;
-    args = PyTuple_Pack(1, items);
-    Py_DECREF(items);
-    if (args == NULL)
-        return NULL;
-    obj = PyTuple_Type.tp_new((PyTypeObject *)cls, args, NULL);
-    Py_DECREF(args);
-    return obj;
+    PyTypeObject *type = (PyTypeObject *)cls;
+    return type == &PyTuple_Type ? PyTuple_New(n) : type->tp_alloc(type, n);
 }
 
-/* The message of a decoded frame: n_fixed ints, then the per-joint arrays as tuples. */
+/* Item k of the new tuple t = the int x; 0 when the int cannot be made. */
+static int set_int(PyObject *t, Py_ssize_t k, long long x)
+{
+    PyObject *o = PyLong_FromLongLong(x);
+    if (o == NULL)
+        return 0;
+    PyTuple_SET_ITEM(t, k, o);
+    return 1;
+}
+
+/* The message of a decoded frame: cls(n_fixed ints, then the per-joint arrays as tuples). */
 static PyObject *message(const int64_t *v, int nv, unsigned nj, Py_ssize_t n_fixed,
                          PyObject *cls)
 {
     Py_ssize_t n_arrays = nj ? (nv - n_fixed) / (Py_ssize_t)nj : 0, k, j;
-    PyObject *items = PyTuple_New(n_fixed + n_arrays);
-    if (items == NULL)
+    PyObject *msg = new_tuple(cls, n_fixed + n_arrays);
+    if (msg == NULL)
         return NULL;
     for (k = 0; k < n_fixed; ++k)
-        PyTuple_SET_ITEM(items, k, PyLong_FromLongLong(v[k]));
+        if (!set_int(msg, k, v[k])) {
+            Py_DECREF(msg);
+            return NULL;
+        }
     for (k = 0; k < n_arrays; ++k) {
         PyObject *arr = PyTuple_New((Py_ssize_t)nj);
         if (arr == NULL) {
-            Py_DECREF(items);
+            Py_DECREF(msg);
             return NULL;
         }
+        PyTuple_SET_ITEM(msg, n_fixed + k, arr);
         for (j = 0; j < (Py_ssize_t)nj; ++j)
-            PyTuple_SET_ITEM(arr, j, PyLong_FromLongLong(v[n_fixed + k * (Py_ssize_t)nj + j]));
-        PyTuple_SET_ITEM(items, n_fixed + k, arr);
+            if (!set_int(arr, j, v[n_fixed + k * (Py_ssize_t)nj + j])) {
+                Py_DECREF(msg);
+                return NULL;
+            }
     }
-    return make(cls, items);
+    return msg;
+}
+
+/* frame_cls((msg_id, seq, msg)), msg stolen. */
+static PyObject *frame(PyObject *frame_cls, int id, unsigned seq, PyObject *msg)
+{
+    PyObject *f = new_tuple(frame_cls, 3);
+    if (f == NULL) {
+        Py_DECREF(msg);
+        return NULL;
+    }
+    PyTuple_SET_ITEM(f, 2, msg);
+    if (!set_int(f, 0, id) || !set_int(f, 1, seq)) {
+        Py_DECREF(f);
+        return NULL;
+    }
+    return f;
 }
 
 /* scan(data, msg_id, raw_len, seq, n_fixed, cls, frame_cls) -> (list, used, next_seq):
@@ -260,7 +285,7 @@ static PyObject *py_scan(PyObject *self, PyObject *args)
             break;
         obj = message(v, nv, nj, n_fixed, cls);
         if (obj != NULL && frame_cls != Py_None)
-            obj = make(frame_cls, Py_BuildValue("(iiN)", id, (int)got, obj));
+            obj = frame(frame_cls, id, got, obj);
         if (obj == NULL || PyList_Append(list, obj) != 0) {
             Py_XDECREF(obj);
             Py_DECREF(list);

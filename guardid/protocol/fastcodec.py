@@ -13,14 +13,9 @@ bytes, frames and counters (tests/test_protocol_fast.py holds them to it).
 
 from __future__ import annotations
 
-import importlib.machinery
-import importlib.util
 import os
-import sysconfig
 from pathlib import Path
 from types import ModuleType
-
-from guardid.native import HOST_CFLAGS, cached_library
 
 FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware_proto"
 SOURCES = ("host/gp_pyext.c", "guard_proto.c", "guard_proto.h", "guard_proto_msgs.h")
@@ -40,6 +35,12 @@ def module() -> ModuleType | None:
 def _load() -> ModuleType | None:
     if os.environ.get("GUARDID_NATIVE", "1") == "0":
         return None
+    import importlib.machinery  # here: commands that never parse a frame do not pay them
+    import importlib.util
+    import sysconfig
+
+    from guardid.native import HOST_CFLAGS, cached_library
+
     include = sysconfig.get_paths().get("include") or ""
     paths = [FIRMWARE_DIR / s for s in SOURCES]
     if not (Path(include) / "Python.h").is_file() or not all(p.is_file() for p in paths):
