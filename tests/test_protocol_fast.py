@@ -9,6 +9,7 @@ damage counts of tests/test_protocol_parser.py's stream, and the Python path its
 from __future__ import annotations
 
 import collections
+import os
 import random
 
 import numpy as np
@@ -23,7 +24,9 @@ from guardid.native import find_compiler
 from guardid.protocol import fastcodec
 from guardid.protocol.vectors import random_message
 
-pytestmark = pytest.mark.skipif(fastcodec.module() is None, reason="needs the C codec built")
+pytestmark = pytest.mark.skipif(
+    find_compiler() is None or os.environ.get("GUARDID_NATIVE") == "0", reason="needs a C compiler"
+)
 M = P.MESSAGES
 
 
@@ -142,6 +145,22 @@ def test_lockstep_run_is_the_same_with_the_python_codec(query, monkeypatch):
     assert fast == slow
     if "drop" in query:
         assert fast[2]["crc_errors"] + fast[2]["cobs_errors"] > 0
+
+
+def test_the_c_codec_is_built_where_a_compiler_is():
+    assert fastcodec.module() is not None  # else the tests above compare Python with itself
+
+
+def test_a_compile_error_warns_and_means_the_python_path(monkeypatch, tmp_path):
+    bad = tmp_path / "host" / "gp_pyext.c"
+    bad.parent.mkdir()
+    bad.write_text("int broken(void) { int unused; return 1; }\n")  # -Werror: unused
+    for name in fastcodec.SOURCES[1:]:
+        (tmp_path / name).write_bytes((fastcodec.FIRMWARE_DIR / name).read_bytes())
+    monkeypatch.setattr(fastcodec, "FIRMWARE_DIR", tmp_path)
+    monkeypatch.setenv("GUARDID_CACHE_DIR", str(tmp_path / "cache"))
+    with pytest.warns(UserWarning, match="C fast path is off: building gp_pyext failed"):
+        assert fastcodec._load() is None
 
 
 def test_no_compiler_or_switched_off_means_the_python_path(monkeypatch):

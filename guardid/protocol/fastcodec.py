@@ -5,15 +5,16 @@
 kind out of a chunk, making the Python objects itself: the per-frame COBS, CRC and struct
 calls of the Python path in one call. Built once into the cache by
 :func:`guardid.native.cached_library`. :func:`module` is None without a C compiler, without
-Python's headers, without the sources (an install without ``firmware_proto/``) or with
-``GUARDID_NATIVE=0``: :class:`guardid.protocol.FrameParser` and
-:meth:`guardid.protocol.Encoder.packer` then take their Python path, which gives the same
-bytes, frames and counters (tests/test_protocol_fast.py holds them to it).
+Python's headers, without the sources (an install without ``firmware_proto/``), when it
+does not compile (a warning says why) or with ``GUARDID_NATIVE=0``: then
+:class:`guardid.protocol.FrameParser` and :meth:`guardid.protocol.Encoder.packer` take their
+Python path, which gives the same bytes, frames and counters (tests/test_protocol_fast.py).
 """
 
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 from types import ModuleType
 
@@ -39,13 +40,17 @@ def _load() -> ModuleType | None:
     import importlib.util
     import sysconfig
 
-    from guardid.native import HOST_CFLAGS, cached_library
+    from guardid.native import HOST_CFLAGS, NativeBuildError, cached_library
 
     include = sysconfig.get_paths().get("include") or ""
     paths = [FIRMWARE_DIR / s for s in SOURCES]
     if not (Path(include) / "Python.h").is_file() or not all(p.is_file() for p in paths):
         return None
-    lib = cached_library(NAME, paths, (*HOST_CFLAGS, f"-I{include}"))
+    try:
+        lib = cached_library(NAME, paths, (*HOST_CFLAGS, f"-I{include}"))
+    except NativeBuildError as exc:  # a speed-up only: say so once, go on in Python
+        warnings.warn(f"guardid: the protocol's C fast path is off: {exc}", stacklevel=2)
+        return None
     if lib is None:
         return None
     loader = importlib.machinery.ExtensionFileLoader(NAME, str(lib))
