@@ -294,14 +294,16 @@ class Session:
         self._write(self._setpoint_packer(len(values), feedforward_mv is not None)(
             tick & 0xFFFFFFFF, 0, *values))  # fmt: skip
 
-    def _setpoint_packer(self, n_values: int, feedforward: bool):
+    def _setpoint_packer(self, n_values: int, feedforward: bool, rows: bool = False):
         """The bytes of encode(SETPOINT(tick, 0, counts)) (or SETPOINT_FF with the
-        feedforward after the counts) from (tick, flags, *values), built once per kind."""
-        key = (n_values, feedforward)
+        feedforward after the counts) from (tick, flags, *values), built once per kind;
+        ``rows``: the :meth:`guardid.protocol.Encoder.rows_packer` of the kind instead."""
+        key = (n_values, feedforward, rows)
         pack = self._setpoint_packers.get(key)
         if pack is None:
             msg, n = (M["SETPOINT_FF"], n_values // 2) if feedforward else (M["SETPOINT"], n_values)
-            pack = self._setpoint_packers[key] = self.encoder.packer(msg, n)
+            make = self.encoder.rows_packer if rows else self.encoder.packer
+            pack = self._setpoint_packers[key] = make(msg, n)
         return pack
 
     def send_voltage(self, volts) -> None:
@@ -361,6 +363,7 @@ class Session:
         last = first + len(rows) - 1
         sent = first
         pack = self._setpoint_packer(len(rows[0]), feedforward)
+        pack_rows = self._setpoint_packer(len(rows[0]), feedforward, rows=True)
         write, next_telemetry = self._write, self.next_telemetry
         write(pack(sent & 0xFFFFFFFF, 0, *rows[0]))
         self.start_stream()
@@ -386,8 +389,7 @@ class Session:
                     if queue:  # the setpoints of every frame read, in one write
                         top = min(queue[-1].tick + depth, last)
                         if sent < top:
-                            write(b"".join([pack(k & 0xFFFFFFFF, 0, *rows[k - first])
-                                            for k in range(sent + 1, top + 1)]))  # fmt: skip
+                            write(pack_rows(sent + 1, 0, rows, sent + 1 - first, top - sent))
                             sent, wrote_at = top, queue[-1].tick
             t = queue.popleft() if queue else next_telemetry()
             tick = t.tick

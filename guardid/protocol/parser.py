@@ -7,17 +7,33 @@ CRC (``short_frames``), CRC mismatch (``crc_errors``), wrong protocol version
 (``bad_version``), unknown message id (``unknown_id``), payload length impossible for
 the id (``bad_length``). Empty segments (repeated delimiters) are idle fill, not errors.
 Nothing is ever raised out of :meth:`FrameParser.feed`.
+
+With the protocol's C codec built (:mod:`guardid.protocol.fastcodec`), a chunk's leading
+segments that are valid frames of the kind the parser took last, in sequence (a stream of
+telemetry, a block of setpoints), are decoded in one call; the Python path goes on from the
+first other segment, so the frames and the counters are the same either way.
 """
 
 from __future__ import annotations
 
 import zlib
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, fields
 
 from cobs import cobs
 
-from .codec import BY_ID, CRC_RESIDUE, DECODERS, FRAME_VERSION, MAX_ENCODED, MIN_RAW, Frame
+from . import fastcodec
+from .codec import (
+    _N_FIXED,
+    BY_ID,
+    CRC_RESIDUE,
+    DECODERS,
+    FRAME_VERSION,
+    MAX_ENCODED,
+    MIN_RAW,
+    Frame,
+)
 
 _cobs_decode, _CobsError, _crc32 = cobs.decode, cobs.DecodeError, zlib.crc32
 
@@ -74,6 +90,10 @@ class FrameParser:
         # (msg_id, raw length) -> (unpack, class, field getter, sink or None): DECODERS
         # with the routes of route() filled in, one lookup per frame
         self._table = {key: (st.unpack, cls, get, None) for key, (st, cls, get) in DECODERS.items()}
+        fast = fastcodec.module()
+        self._scan = None if fast is None else fast.scan
+        self._kind: tuple[int, int] | None = None  # (msg_id, raw length) of the last frame
+        self._extend: dict[int, Callable | None] = {}  # msg_id -> extend of a route's sink
 
     def route(self, msg_id: int, cls: type, sink: Callable[[tuple], object]) -> None:
         """Hand valid frames of ``msg_id`` to ``sink(msg)`` as they are parsed, ``msg``
@@ -83,6 +103,8 @@ class FrameParser:
         for key, (st, _, get) in DECODERS.items():
             if key[0] == msg_id:
                 self._table[key] = (st.unpack, cls, get, sink)
+        owner = getattr(sink, "__self__", None)  # a list's or deque's append: extend, at once
+        self._extend[msg_id] = owner.extend if type(owner) in (list, deque) else None
 
     def reset_sequence(self) -> None:
         """Forget the expected sequence numbers (e.g. after the peer was reset)."""
@@ -94,7 +116,12 @@ class FrameParser:
         st.bytes += len(chunk)
         if self._buf:
             chunk = self._buf + chunk
-        parts = (chunk if type(chunk) is bytes else bytes(chunk)).split(b"\x00")
+        if type(chunk) is not bytes:
+            chunk = bytes(chunk)
+        out: list[Frame] = []
+        if self._kind is not None and self._scan is not None and not self._discard:
+            chunk = self._feed_scanned(chunk, out)
+        parts = chunk.split(b"\x00")
         tail = parts.pop()
         if self._discard:
             if not parts:
@@ -106,7 +133,6 @@ class FrameParser:
             self._discard = True
             tail = b""
         self._buf = tail
-        out: list[Frame] = []
         table = self._table
         expect = self._expect
         new = tuple.__new__
@@ -152,6 +178,7 @@ class FrameParser:
                 else:
                     st.seq_backwards += 1
             expect[d] = (seq + 1) & 0xFFFF
+            self._kind = (mid, n)
             if sink is not None:
                 sink(new(cls, get(vals)))
                 routed += 1
@@ -159,3 +186,27 @@ class FrameParser:
                 out.append(new(Frame, (mid, seq, new(cls, get(vals)))))
         st.frames += len(out) + routed
         return out
+
+    def _feed_scanned(self, chunk: bytes, out: list) -> bytes:
+        """The leading frames of the last kind in ``chunk`` through the C codec, into
+        ``out`` (counted by :meth:`feed`) or to their route; returns the rest of the chunk."""
+        mid, n = self._kind
+        _, cls, _, sink = self._table[(mid, n)]
+        d = mid >> 7
+        exp = self._expect[d]
+        frames, used, nxt = self._scan(chunk, mid, n, -1 if exp is None else exp,
+                                       _N_FIXED[mid], cls, None if sink else Frame)  # fmt: skip
+        if not frames:
+            return chunk
+        self._expect[d] = nxt
+        if sink is None:
+            out += frames
+        else:
+            extend = self._extend[mid]
+            if extend is not None and sink.__name__ == "append":
+                extend(frames)
+            else:
+                for msg in frames:
+                    sink(msg)
+            self.stats.frames += len(frames)
+        return chunk[used:]
