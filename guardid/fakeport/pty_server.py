@@ -23,7 +23,9 @@ the robot a ``sim://`` capture meets. Output not read by the previous program is
 While the MCU boots (boot loader) its clock follows the wall clock, whatever the pacing:
 a boot loader's wait for a programmer is real time on a board, and a host's silence after
 its open (avrdude's DTR handling, guardid's wait for INFO) must not outlast it in
-simulated time; from the firmware's first tick on the pacing rules above hold.
+simulated time; from the firmware's first tick on the pacing rules above hold, the
+fallback's ``idle_s`` counted from that tick (a host that wrote during the boot, or not at
+all, gets its ``idle_s`` to answer the firmware's first bytes).
 
 Host bytes reach the device as soon as they arrive. Real-time pacing: events run on
 the wall clock (times the factor) from the host's first byte on. A simulated disconnect
@@ -145,6 +147,8 @@ class PtyServer:
                 boot_origin = (self.engine.now_ns, now)
             if self._booting():
                 self._boot_to(boot_origin[0] + round((now - boot_origin[1]) * 1e9))
+                if not self._booting():  # the firmware's first tick: its INFO is out, and
+                    last_step = now  # the host's silence counts from here, not its open
             elif self.pacing is not None and talked:
                 self.engine.advance_to(self._sim_ns(t0, now))
                 self._collect()
