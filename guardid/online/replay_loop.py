@@ -224,7 +224,10 @@ class MethodReplay:
         alarm_row = None
         if self.det is not None:
             z = e / np.asarray(self.det.sigma)[None, :]
-            alarm_row = _cusum_block(self.det, t, z, ok)
+            if lib is not None:
+                alarm_row = replay_native.cusum_rows(lib, self.det, t, z, ok)
+            else:
+                alarm_row = _cusum_block(self.det, t, z, ok)
         end = L if alarm_row is None else alarm_row + 1
         commit(end)
         self.fast["n"] += end

@@ -41,6 +41,8 @@ def _load():
     lib.guardid_hopfield_rows.restype = _INT
     lib.guardid_information_rows.argtypes = [_INT, _INT, _INT, _PTR, _DBL, _PTR, _PTR]
     lib.guardid_information_rows.restype = None
+    lib.guardid_cusum_rows.argtypes = [_INT, _INT, _PTR, _PTR, _PTR, _DBL, _DBL, *[_PTR] * 3]
+    lib.guardid_cusum_rows.restype = _INT
     return lib
 
 
@@ -76,7 +78,7 @@ def hopfield_rows(lib, A, y, lam, f, S, c, g, K, tau, smax, W, b, s):
     L, n, p = A.shape
     A, y = _c(A), _c(y)
     states, resid = np.empty((L, p)), np.empty((L, n))
-    work = np.empty(K * p * p + 2 * p * p + K * p + 7 * p)
+    work = np.empty(p * p + K * p + 8 * p)
     ptrs = [a.ctypes.data for a in (W, b, s, states, resid, work)]
     code = lib.guardid_hopfield_rows(
         L, n, p, K, A.ctypes.data, y.ctypes.data, lam, f.ctypes.data, S.ctypes.data,
@@ -90,3 +92,18 @@ def information_rows(lib, A, lam, f, W) -> None:
     L, n, p = A.shape
     A = _c(A)
     lib.guardid_information_rows(L, n, p, A.ctypes.data, lam, f.ctypes.data, W.ctypes.data)
+
+
+def cusum_rows(lib, det, t, z, ok):
+    """The two-sided CUSUM of the armed detector ``det`` over t (L,) [s], z (L, n)
+    residuals in sigma, ok (L, n) present joint equations, its state advanced (as
+    :func:`guardid.online.replay_loop._cusum_block`): the row of the first alarm or None."""
+    L, n = z.shape
+    t, z = _c(t), _c(z)
+    ok = np.ascontiguousarray(ok, dtype=np.bool_)
+    state = [np.array(x, dtype=float) for x in (det._g, det._zero_t, det._rise_t)]
+    s = det.settings
+    first = lib.guardid_cusum_rows(L, n, t.ctypes.data, z.ctypes.data, ok.ctypes.data,
+                                   s.kappa, s.h, *(x.ctypes.data for x in state))  # fmt: skip
+    det._g, det._zero_t, det._rise_t = (x.tolist() for x in state)
+    return None if first < 0 else first

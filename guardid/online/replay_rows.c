@@ -130,23 +130,23 @@ int guardid_rls_rows(int L, int n, int p, const double *A, const double *y, doub
 
 /* The windowed Hopfield network over L rows, rows_per_step (K) rows a step
  * (replay_loop.MethodReplay._hopfield): per step the weights' part
- * Gs = g S mean(W_j) S and D^-1 = 1 / (1 - s0^2) held at the step's start state s0, each
- * row j with its own force Bt_j = (Gs - g S W_j S) s0 + g S (Bd_j + f phc_j - W_j c), then
- * per row (Gs + D^-1) s_j = (D^-1 + g S f S) s_(j-1) + lam g S f psi_(j-1) + Bt_j and
+ * Gs = g S mean(W_j) S and D^-1 = 1 / (1 - s0^2) held at the step's start state s0 (the
+ * estimate theta0 = c + S s0), each row j with its own force
+ * Bt_j = Gs s0 + g S (Bd_j + f phc_j - W_j theta0) (= (Gs - g S W_j S) s0
+ * + g S (Bd_j + f phc_j - W_j c)), then per row
+ * (Gs + D^-1) s_j = (D^-1 + g S f S) s_(j-1) + lam g S f psi_(j-1) + Bt_j and
  * psi_j = lam psi_(j-1) + S s_(j-1); the fraction-to-boundary rule (tau, smax) on the
- * step. States (L, p) are s after each row; b and s are left as after the last row.
- * work: K * p * p + 2 * p * p + K * p + 7 * p doubles. */
+ * step. States (L, p) are s after each row; W, b and s are left as after the last row.
+ * work: p * p + K * p + 8 * p doubles. */
 int guardid_hopfield_rows(int L, int n, int p, int K, const double *A, const double *y,
                           double lam, const double *f, const double *S, const double *c,
                           double g, double tau, double smax, double *W, double *b, double *s,
                           double *states, double *resid, double *work)
 {
-    double *Wj = work;                      /* (K, p, p): W of the step's rows */
-    double *Gs = Wj + (long)K * p * p;      /* (p, p) */
-    double *M = Gs + p * p;                 /* (p, p): factor of Gs + D^-1 */
-    double *Bt = M + p * p;                 /* (K, p) */
+    double *Gs = work;                      /* (p, p), lower triangle: then its factor */
+    double *Bt = Gs + p * p;                /* (K, p) */
     double *Bd = Bt + (long)K * p, *phc = Bd + p, *psi = phc + p, *psi0 = psi + p;
-    double *s0 = psi0 + p, *Dinv = s0 + p, *x = Dinv + p;
+    double *s0 = psi0 + p, *Dinv = s0 + p, *x = Dinv + p, *th0 = x + p;
     double bound = 0.0;
     int k0, i, j, l, r;
     for (i = 0; i < p; i++) {
@@ -159,54 +159,60 @@ int guardid_hopfield_rows(int L, int n, int p, int K, const double *A, const dou
     for (k0 = 0; k0 < L; k0 += K) {
         int cnt = L - k0 < K ? L - k0 : K;
         double step = 0.0;
-        for (i = 0; i < p * p; i++)
-            Gs[i] = 0.0;
-        for (j = 0; j < cnt; j++) {
-            const double *a = A + (long)(k0 + j) * n * p, *yj = y + (long)(k0 + j) * n;
-            double *Wr = Wj + (long)j * p * p, *rj = Bt + (long)j * p;
-            information_row(n, p, a, lam, f, W, 0);
-            for (i = 0; i < p * p; i++) {
-                Wr[i] = W[i];
-                Gs[i] += W[i];
-            }
-            for (i = 0; i < p; i++) {
-                double aty = 0.0, wc = 0.0;
-                for (r = 0; r < n; r++)
-                    aty += a[r * p + i] * yj[r];
-                for (l = 0; l < p; l++)
-                    wc += W[i * p + l] * c[l];
-                Bd[i] = lam * Bd[i] + aty;
-                phc[i] = lam * phc[i] + c[i];
-                rj[i] = g * S[i] * (Bd[i] + f[i] * phc[i] - wc);
-            }
-        }
-        for (i = 0; i < p; i++)
-            for (l = 0; l < p; l++)
-                Gs[i * p + l] *= g * S[i] * S[l] / cnt;
         for (i = 0; i < p; i++) {
             s0[i] = s[i];
             psi0[i] = psi[i];
             Dinv[i] = 1.0 / (1.0 - s[i] * s[i]);
-            x[i] = S[i] * s[i]; /* S s0 */
+            th0[i] = c[i] + S[i] * s[i];
+            for (l = 0; l <= i; l++)
+                Gs[i * p + l] = 0.0;
         }
-        for (j = 0; j < cnt; j++) { /* Bt_j = Gs s0 - g S (W_j (S s0)) + r_j */
-            const double *Wr = Wj + (long)j * p * p;
+        for (j = 0; j < cnt; j++) { /* the information, its sum and W_j theta0 */
+            const double *a = A + (long)(k0 + j) * n * p, *yj = y + (long)(k0 + j) * n;
             double *rj = Bt + (long)j * p;
+            for (i = 0; i < p; i++)
+                x[i] = 0.0;
             for (i = 0; i < p; i++) {
-                double gs = 0.0, ws = 0.0;
-                for (l = 0; l < p; l++) {
-                    gs += Gs[i * p + l] * s0[l];
-                    ws += Wr[i * p + l] * x[l];
+                for (l = 0; l <= i; l++) {
+                    double m = lam * W[i * p + l];
+                    for (r = 0; r < n; r++)
+                        m += a[r * p + i] * a[r * p + l];
+                    if (i == l)
+                        m += f[i];
+                    W[i * p + l] = m;
+                    W[l * p + i] = m;
+                    Gs[i * p + l] += m;
+                    x[i] += m * th0[l];
+                    if (l < i)
+                        x[l] += m * th0[i];
                 }
-                rj[i] += gs - g * S[i] * ws;
+            }
+            for (i = 0; i < p; i++) {
+                double aty = 0.0;
+                for (r = 0; r < n; r++)
+                    aty += a[r * p + i] * yj[r];
+                Bd[i] = lam * Bd[i] + aty;
+                phc[i] = lam * phc[i] + c[i];
+                rj[i] = g * S[i] * (Bd[i] + f[i] * phc[i] - x[i]);
             }
         }
-        for (i = 0; i < p; i++) {
+        for (i = 0; i < p; i++)
             for (l = 0; l <= i; l++)
-                M[i * p + l] = Gs[i * p + l];
-            M[i * p + i] += Dinv[i];
+                Gs[i * p + l] *= g * S[i] * S[l] / cnt;
+        for (i = 0; i < p; i++) { /* x = Gs s0, Gs symmetric in its lower triangle */
+            double v = 0.0;
+            for (l = 0; l <= i; l++)
+                v += Gs[i * p + l] * s0[l];
+            for (l = i + 1; l < p; l++)
+                v += Gs[l * p + i] * s0[l];
+            x[i] = v;
         }
-        if (cholesky(p, M))
+        for (j = 0; j < cnt; j++)
+            for (i = 0; i < p; i++)
+                Bt[(long)j * p + i] += x[i];
+        for (i = 0; i < p; i++)
+            Gs[i * p + i] += Dinv[i];
+        if (cholesky(p, Gs))
             return k0 + 1;
         for (j = 0; j < cnt; j++) {
             const double *prev = j ? states + (long)(k0 + j - 1) * p : s0;
@@ -215,7 +221,7 @@ int guardid_hopfield_rows(int L, int n, int p, int K, const double *A, const dou
                 double gsf = g * S[i] * f[i];
                 sj[i] = (Dinv[i] + gsf * S[i]) * prev[i] + lam * gsf * psi[i] + rj[i];
             }
-            cholesky_solve(p, M, sj);
+            cholesky_solve(p, Gs, sj);
             for (i = 0; i < p; i++)
                 psi[i] = lam * psi[i] + S[i] * prev[i];
         }
@@ -272,4 +278,39 @@ int guardid_hopfield_rows(int L, int n, int p, int K, const double *A, const dou
     for (i = 0; i < p; i++)
         b[i] = Bd[i] + f[i] * (phc[i] + psi[i]);
     return 0;
+}
+
+/* The change detector's two-sided CUSUM (online/detector.py ChangeDetector._cusum) over L
+ * rows: t (L,) [s], z (L, n) residuals in sigma, ok (L, n) present joint equations; the
+ * state g, zero_t, rise_t (2, n) [up, down][joint] advanced in place. Returns the row of
+ * the first alarm (the state then as after that row), or -1 (as after the rows). */
+int guardid_cusum_rows(int L, int n, const double *t, const double *z,
+                       const unsigned char *ok, double kappa, double h, double *g,
+                       double *zero_t, double *rise_t)
+{
+    int k, j, side, fired = 0;
+    for (k = 0; k < L; k++) {
+        for (j = 0; j < n; j++) {
+            if (!ok[(long)k * n + j])
+                continue;
+            for (side = 0; side < 2; side++) {
+                double x = side ? -z[(long)k * n + j] : z[(long)k * n + j];
+                double *gs = g + side * n + j;
+                int was_zero = *gs <= 0.0;
+                double v = (*gs + x) - kappa;
+                if (!(v > 0.0))
+                    v = 0.0;
+                *gs = v;
+                if (v <= 0.0)
+                    zero_t[side * n + j] = t[k];
+                else if (was_zero)
+                    rise_t[side * n + j] = t[k];
+                if (v > h)
+                    fired = 1;
+            }
+        }
+        if (fired)
+            return k;
+    }
+    return -1;
 }
