@@ -135,3 +135,37 @@ def test_hopfield_rows_equal_the_numpy_fast_path(lib, tracker, beta, per_step, s
     if beta < 0.01:  # steps the fraction-to-boundary rule cuts short: without it, others
         free, _ = c_rows(1e9, start["W"].copy(), start["b"].copy(), start["s"].copy())
         assert np.abs(free - states).max() > 1e-3
+
+
+@pytest.mark.parametrize("kind", ["rls", "hopfield"])
+def test_a_block_cut_at_an_alarm_keeps_the_state_of_that_row(lib, tracker, kind):
+    """After an alarm at a block's row 100 the method goes on from its state after that row:
+    C (the information recomputed to the row, the biases by the live network's recursion)
+    against the numpy path's (the block's own rows)."""
+    method, rows, A, y = _hopfield_method(tracker, 3.0, 16, 4)
+    if kind == "rls":
+        rls = OnlineIdentifier(GUARD, ("rls",), detector=False, keep_history=False)
+        method = MethodReplay(rls, "rls", 0)
+        method._load()
+    start = {k: np.copy(v) for k, v in method.fast.items()}
+    method._numpy(rows, 0, len(A), A, y)[3](101)
+    by_numpy = method.fast
+    method.fast = start
+    method._native(lib, A, y)[3](101)
+    assert by_numpy.keys() == method.fast.keys()
+    for key, value in by_numpy.items():
+        scale = np.abs(value).max()
+        assert np.allclose(method.fast[key], value, rtol=0, atol=1e-12 * scale), key
+
+
+def test_no_kernel_when_turned_off_or_without_a_compiler(monkeypatch):
+    assert replay_native.kernel() is not None
+    monkeypatch.setattr(replay_native, "USE_NATIVE", False)
+    assert replay_native.kernel() is None
+    monkeypatch.setattr(replay_native, "USE_NATIVE", True)
+    monkeypatch.setenv("CC", "/nonexistent/cc")
+    replay_native._load.cache_clear()
+    try:
+        assert replay_native.kernel() is None
+    finally:
+        replay_native._load.cache_clear()
