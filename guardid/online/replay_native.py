@@ -62,7 +62,7 @@ def rls_rows(lib, A, y, lam, f, W, theta):
     then partly updated)."""
     L, n, p = A.shape
     A, y = _c(A), _c(y)
-    post, resid, work = np.empty((L, p)), np.empty((L, n)), np.empty(p * p + p)
+    post, resid, work = np.empty((L, p)), np.empty((L, n)), np.empty(p * p + 2 * p)
     args = [A, y, f, W, theta, post, resid, work]
     if lib.guardid_rls_rows(L, n, p, A.ctypes.data, y.ctypes.data, lam,
                             *(a.ctypes.data for a in args[2:])):  # fmt: skip
@@ -78,7 +78,7 @@ def hopfield_rows(lib, A, y, lam, f, S, c, g, K, tau, smax, W, b, s):
     L, n, p = A.shape
     A, y = _c(A), _c(y)
     states, resid = np.empty((L, p)), np.empty((L, n))
-    work = np.empty(p * p + K * p + 8 * p)
+    work = np.empty(2 * p * p + K * p + 9 * p + 2 * K)
     ptrs = [a.ctypes.data for a in (W, b, s, states, resid, work)]
     code = lib.guardid_hopfield_rows(
         L, n, p, K, A.ctypes.data, y.ctypes.data, lam, f.ctypes.data, S.ctypes.data,

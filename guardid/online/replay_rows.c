@@ -13,8 +13,10 @@
  */
 #include <math.h>
 
-/* The Cholesky factor of the lower triangle of M (p, p) in place; 0 if positive definite. */
-static int cholesky(int p, double *M)
+/* The Cholesky factor F of the lower triangle of M (p, p) in place, the reciprocals of its
+ * diagonal in inv (p,) (multiplications, not divisions, in the solves); 0 if positive
+ * definite. */
+static int cholesky(int p, double *M, double *inv)
 {
     int i, j, k;
     for (j = 0; j < p; j++) {
@@ -25,31 +27,32 @@ static int cholesky(int p, double *M)
             return 1;
         d = sqrt(d);
         M[j * p + j] = d;
+        inv[j] = 1.0 / d;
         for (i = j + 1; i < p; i++) {
             double v = M[i * p + j];
             for (k = 0; k < j; k++)
                 v -= M[i * p + k] * M[j * p + k];
-            M[i * p + j] = v / d;
+            M[i * p + j] = v * inv[j];
         }
     }
     return 0;
 }
 
-/* x <- (F F^T)^-1 x with F the factor of cholesky(). */
-static void cholesky_solve(int p, const double *F, double *x)
+/* x <- (F F^T)^-1 x with F, inv from cholesky(). */
+static void cholesky_solve(int p, const double *F, const double *inv, double *x)
 {
     int i, k;
     for (i = 0; i < p; i++) {
         double v = x[i];
         for (k = 0; k < i; k++)
             v -= F[i * p + k] * x[k];
-        x[i] = v / F[i * p + i];
+        x[i] = v * inv[i];
     }
     for (i = p - 1; i >= 0; i--) {
         double v = x[i];
         for (k = i + 1; k < p; k++)
             v -= F[k * p + i] * x[k];
-        x[i] = v / F[i * p + i];
+        x[i] = v * inv[i];
     }
 }
 
@@ -99,12 +102,12 @@ void guardid_information_rows(int L, int n, int p, const double *A, double lam,
 
 /* RLS in information form over L rows: W_k = lam W_(k-1) + A_k^T A_k + diag(f) and
  * theta_k = theta_(k-1) + (lam W_(k-1) + A_k^T A_k)^-1 A_k^T (y_k - A_k theta_(k-1)).
- * work: p * p + p doubles. */
+ * work: p * p + 2 * p doubles. */
 int guardid_rls_rows(int L, int n, int p, const double *A, const double *y, double lam,
                      const double *f, double *W, double *theta, double *post, double *resid,
                      double *work)
 {
-    double *M = work, *x = work + p * p;
+    double *M = work, *x = work + p * p, *inv = x + p;
     int k, i, r;
     for (k = 0; k < L; k++) {
         const double *a = A + (long)k * n * p;
@@ -117,9 +120,9 @@ int guardid_rls_rows(int L, int n, int p, const double *A, const double *y, doub
                 v += a[r * p + i] * e[r];
             x[i] = v;
         }
-        if (cholesky(p, M))
+        if (cholesky(p, M, inv))
             return k + 1;
-        cholesky_solve(p, M, x);
+        cholesky_solve(p, M, inv, x);
         for (i = 0; i < p; i++) {
             theta[i] += x[i];
             post[(long)k * p + i] = theta[i];
@@ -137,16 +140,18 @@ int guardid_rls_rows(int L, int n, int p, const double *A, const double *y, doub
  * (Gs + D^-1) s_j = (D^-1 + g S f S) s_(j-1) + lam g S f psi_(j-1) + Bt_j and
  * psi_j = lam psi_(j-1) + S s_(j-1); the fraction-to-boundary rule (tau, smax) on the
  * step. States (L, p) are s after each row; W, b and s are left as after the last row.
- * work: p * p + K * p + 8 * p doubles. */
+ * work: 2 * p * p + K * p + 9 * p + 2 * K doubles. */
 int guardid_hopfield_rows(int L, int n, int p, int K, const double *A, const double *y,
                           double lam, const double *f, const double *S, const double *c,
                           double g, double tau, double smax, double *W, double *b, double *s,
                           double *states, double *resid, double *work)
 {
     double *Gs = work;                      /* (p, p), lower triangle: then its factor */
-    double *Bt = Gs + p * p;                /* (K, p) */
+    double *Wn = Gs + p * p;                /* (p, p), lower triangle: W after the step */
+    double *Bt = Wn + p * p;                /* (K, p) */
     double *Bd = Bt + (long)K * p, *phc = Bd + p, *psi = phc + p, *psi0 = psi + p;
     double *s0 = psi0 + p, *Dinv = s0 + p, *x = Dinv + p, *th0 = x + p;
+    double *inv = th0 + p, *wa = inv + p, *wb = wa + K, sa, sb; /* wa, wb (K,) */
     double bound = 0.0;
     int k0, i, j, l, r;
     for (i = 0; i < p; i++) {
@@ -159,33 +164,51 @@ int guardid_hopfield_rows(int L, int n, int p, int K, const double *A, const dou
     for (k0 = 0; k0 < L; k0 += K) {
         int cnt = L - k0 < K ? L - k0 : K;
         double step = 0.0;
+        for (j = cnt - 1; j >= 0; j--) { /* row j's weight in W_end and in sum W */
+            wa[j] = j == cnt - 1 ? 1.0 : lam * wa[j + 1];
+            wb[j] = j == cnt - 1 ? 1.0 : 1.0 + lam * wb[j + 1];
+        }
+        for (j = 0, sa = 0.0, sb = 0.0; j < cnt; j++) {
+            sa += wa[j];
+            sb += wb[j];
+        }
         for (i = 0; i < p; i++) {
             s0[i] = s[i];
             psi0[i] = psi[i];
             Dinv[i] = 1.0 / (1.0 - s[i] * s[i]);
             th0[i] = c[i] + S[i] * s[i];
-            for (l = 0; l <= i; l++)
-                Gs[i * p + l] = 0.0;
         }
-        for (j = 0; j < cnt; j++) { /* the information, its sum and W_j theta0 */
+        for (i = 0; i < p; i++) { /* v = W th0; the sums from W before the step */
+            double v = 0.0;
+            for (l = 0; l < p; l++)
+                v += W[i * p + l] * th0[l];
+            x[i] = v;
+            for (l = 0; l <= i; l++) {
+                Gs[i * p + l] = lam * wb[0] * W[i * p + l];
+                Wn[i * p + l] = lam * wa[0] * W[i * p + l];
+            }
+            Gs[i * p + i] += sb * f[i];
+            Wn[i * p + i] += sa * f[i];
+        }
+        for (j = 0; j < cnt; j++) { /* W_j = lam W_(j-1) + A_j^T A_j + F summed, W_j th0 */
             const double *a = A + (long)(k0 + j) * n * p, *yj = y + (long)(k0 + j) * n;
             double *rj = Bt + (long)j * p;
-            for (i = 0; i < p; i++)
-                x[i] = 0.0;
             for (i = 0; i < p; i++) {
                 for (l = 0; l <= i; l++) {
-                    double m = lam * W[i * p + l];
+                    double q = 0.0;
                     for (r = 0; r < n; r++)
-                        m += a[r * p + i] * a[r * p + l];
-                    if (i == l)
-                        m += f[i];
-                    W[i * p + l] = m;
-                    W[l * p + i] = m;
-                    Gs[i * p + l] += m;
-                    x[i] += m * th0[l];
-                    if (l < i)
-                        x[l] += m * th0[i];
+                        q += a[r * p + i] * a[r * p + l];
+                    Gs[i * p + l] += wb[j] * q;
+                    Wn[i * p + l] += wa[j] * q;
                 }
+                x[i] = lam * x[i] + f[i] * th0[i];
+            }
+            for (r = 0; r < n; r++) {
+                double at = 0.0;
+                for (l = 0; l < p; l++)
+                    at += a[r * p + l] * th0[l];
+                for (i = 0; i < p; i++)
+                    x[i] += a[r * p + i] * at;
             }
             for (i = 0; i < p; i++) {
                 double aty = 0.0;
@@ -196,9 +219,13 @@ int guardid_hopfield_rows(int L, int n, int p, int K, const double *A, const dou
                 rj[i] = g * S[i] * (Bd[i] + f[i] * phc[i] - x[i]);
             }
         }
-        for (i = 0; i < p; i++)
-            for (l = 0; l <= i; l++)
+        for (i = 0; i < p; i++) {
+            for (l = 0; l <= i; l++) {
+                W[i * p + l] = Wn[i * p + l];
+                W[l * p + i] = Wn[i * p + l];
                 Gs[i * p + l] *= g * S[i] * S[l] / cnt;
+            }
+        }
         for (i = 0; i < p; i++) { /* x = Gs s0, Gs symmetric in its lower triangle */
             double v = 0.0;
             for (l = 0; l <= i; l++)
@@ -212,7 +239,7 @@ int guardid_hopfield_rows(int L, int n, int p, int K, const double *A, const dou
                 Bt[(long)j * p + i] += x[i];
         for (i = 0; i < p; i++)
             Gs[i * p + i] += Dinv[i];
-        if (cholesky(p, Gs))
+        if (cholesky(p, Gs, inv))
             return k0 + 1;
         for (j = 0; j < cnt; j++) {
             const double *prev = j ? states + (long)(k0 + j - 1) * p : s0;
@@ -221,7 +248,7 @@ int guardid_hopfield_rows(int L, int n, int p, int K, const double *A, const dou
                 double gsf = g * S[i] * f[i];
                 sj[i] = (Dinv[i] + gsf * S[i]) * prev[i] + lam * gsf * psi[i] + rj[i];
             }
-            cholesky_solve(p, Gs, sj);
+            cholesky_solve(p, Gs, inv, sj);
             for (i = 0; i < p; i++)
                 psi[i] = lam * psi[i] + S[i] * prev[i];
         }
