@@ -196,13 +196,13 @@ def test_replay_c_kernel_equals_its_numpy_path(payload_log, monkeypatch):
     against its numpy path on the payload log with gaps: the same rows, estimates within
     RTOL of each parameter's scale, the same change reports (times equal, text identical);
     and with every other block handed back to the numpy path (as when a system is not
-    positive definite by round-off): the same again. Blocks of 97 rows (many, an alarm
-    inside one)."""
+    positive definite by round-off): the same again. Blocks of 32 rows for numpy, 4 x 32
+    for C (many, an alarm inside one; the Hopfield steps on the same rows)."""
     from guardid.online import replay_native
 
     if replay_native.kernel() is None:
         pytest.skip("needs a C compiler")
-    monkeypatch.setattr(replay_loop, "BLOCK", 97)  # many blocks, one across the payload
+    monkeypatch.setattr(replay_loop, "BLOCK", 32)  # many blocks, one across the payload
     run, trajectory = payload_log
     keep = np.ones(len(run.ticks), dtype=bool)
     keep[700:712] = False

@@ -54,6 +54,10 @@ from guardid.online import replay_native
 
 BLOCK = 2048
 """Used rows per fast block (memory: about 4 kB per row)."""
+NATIVE_BLOCKS = 4
+"""Blocks of :data:`BLOCK` rows taken at once with the C kernel (memory: its per-row
+arrays, under 0.5 kB a row; fewer calls). A multiple of the Hopfield step's rows, as
+:data:`BLOCK` is: the steps fall on the same rows either way."""
 
 HOPFIELD_ROWS_PER_STEP = 16
 """Rows merged into one step of the Hopfield network on the fast path (1: a step a row, as
@@ -133,12 +137,14 @@ class MethodReplay:
 
     # -- driving ----------------------------------------------------------------------------
     def advance(self, rows: Rows, i: int, i1: int) -> int:
-        """Row ``i`` on the slow path or a fast block from it (up to :data:`BLOCK` rows, not
-        past ``i1``); returns the next row."""
+        """Row ``i`` on the slow path or a fast block from it (up to :data:`BLOCK` rows, or
+        :data:`NATIVE_BLOCKS` times that with the C kernel, not past ``i1``); returns the
+        next row."""
         if self._fast_ok(float(rows.t[i])):
             if self.fast is None:
                 self._load()
-            return self._block(rows, i, min(i + BLOCK, i1))
+            span = BLOCK * (NATIVE_BLOCKS if replay_native.kernel() is not None else 1)
+            return self._block(rows, i, min(i + span, i1))
         if self.fast is not None:
             self._store()
         self._slow(rows, i)
