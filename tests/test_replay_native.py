@@ -158,14 +158,20 @@ def test_a_block_cut_at_an_alarm_keeps_the_state_of_that_row(lib, tracker, kind)
         assert np.allclose(method.fast[key], value, rtol=0, atol=1e-12 * scale), key
 
 
-def test_no_kernel_when_turned_off_or_without_a_compiler(monkeypatch):
+def test_no_kernel_when_turned_off_or_without_a_compiler(monkeypatch, tmp_path):
+    """Off, an unwritable cache, no compiler: no kernel (the replay's numpy path)."""
     assert replay_native.kernel() is not None
     monkeypatch.setattr(replay_native, "USE_NATIVE", False)
     assert replay_native.kernel() is None
     monkeypatch.setattr(replay_native, "USE_NATIVE", True)
-    monkeypatch.setenv("CC", "/nonexistent/cc")
+    blocked = tmp_path / "not-a-directory"
+    blocked.write_text("")
     replay_native._load.cache_clear()
     try:
+        monkeypatch.setenv("GUARDID_CACHE_DIR", str(blocked / "cache"))  # cannot be made
+        assert replay_native.kernel() is None
+        replay_native._load.cache_clear()
+        monkeypatch.setenv("CC", "/nonexistent/cc")
         assert replay_native.kernel() is None
     finally:
         replay_native._load.cache_clear()

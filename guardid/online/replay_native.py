@@ -5,8 +5,9 @@ the numpy fast path of :mod:`guardid.online.replay_loop` row after row (the same
 to round-off: tests/test_replay_native.py), without its (block, p, p) arrays.
 
 Built once into guardid's cache by :func:`guardid.native.cached_library`; without a
-compiler (or with :data:`USE_NATIVE` False) :func:`kernel` is None and the replay keeps its
-numpy path.
+compiler, with a cache directory that cannot be written or a library that does not load
+(or with :data:`USE_NATIVE` False) :func:`kernel` is None and the replay keeps its numpy
+path; a compiler error in the source raises :class:`guardid.native.NativeBuildError`.
 """
 
 from __future__ import annotations
@@ -28,10 +29,13 @@ _INT, _DBL, _PTR = ctypes.c_int, ctypes.c_double, ctypes.c_void_p
 def _load():
     from guardid.native import cached_library
 
-    path = cached_library("replay_rows", [SOURCE])
-    if path is None:
+    try:  # a compiler error raises (a source bug); a cache or loader that fails: numpy
+        path = cached_library("replay_rows", [SOURCE])
+        lib = None if path is None else ctypes.CDLL(str(path))
+    except OSError:
         return None
-    lib = ctypes.CDLL(str(path))
+    if lib is None:
+        return None
     lib.guardid_rls_rows.argtypes = [_INT, _INT, _INT, _PTR, _PTR, _DBL, *[_PTR] * 6]
     lib.guardid_rls_rows.restype = _INT
     lib.guardid_hopfield_rows.argtypes = [
