@@ -189,3 +189,47 @@ def test_identify_tracks_in_a_forked_process_with_the_in_process_output(payload_
     assert any(x.startswith("tracking (the log replayed") for x in lines(forked))
     assert any(x.startswith("payload changed") for x in lines(forked))  # the 1 kg at 22 s
     assert lines(forked) == lines(inside)
+
+
+def test_replay_c_kernel_equals_its_numpy_path(payload_log, monkeypatch):
+    """The replay's C kernel (guardid/online/replay_rows.c; tests/test_replay_native.py)
+    against its numpy path on the payload log with gaps: the same rows, estimates within
+    RTOL of each parameter's scale, the same change reports (times equal, text identical);
+    and with every other block handed back to the numpy path (as when a system is not
+    positive definite by round-off): the same again. Blocks of 32 rows for numpy, 4 x 32
+    for C (many, an alarm inside one; the Hopfield steps on the same rows)."""
+    from guardid.online import replay_native
+
+    if replay_native.kernel() is None:
+        pytest.skip("needs a C compiler")
+    monkeypatch.setattr(replay_loop, "BLOCK", 32)  # many blocks, one across the payload
+    run, trajectory = payload_log
+    keep = np.ones(len(run.ticks), dtype=bool)
+    keep[700:712] = False
+    keep[[1200, 1903]] = False
+    t = (run.ticks - run.ticks[0]) * GUARD.sample_period
+    rows = [x[keep] for x in (t, run.q, run.current, run.voltage)]
+
+    def replayed():
+        tk = OnlineIdentifier.for_trajectory(GUARD, ("rls", "hopfield"), trajectory)
+        return tk, tk.feed(*rows)
+
+    native = replayed()
+    calls = {"n": 0}
+
+    def every_other(kernel):
+        def call(*args):
+            calls["n"] += 1
+            return kernel(*args) if calls["n"] % 2 else None
+
+        return call
+
+    for name in ("rls_rows", "hopfield_rows"):
+        monkeypatch.setattr(replay_native, name, every_other(getattr(replay_native, name)))
+    mixed = replayed()
+    assert calls["n"] >= 6
+    monkeypatch.setattr(replay_native, "USE_NATIVE", False)
+    by_numpy = replayed()
+    assert {r.method for r in by_numpy[1]} == {"rls", "hopfield"}  # the payload is seen
+    _assert_same(*by_numpy, *native)
+    _assert_same(*by_numpy, *mixed)

@@ -1,8 +1,9 @@
 """The fast paths of issue 21 against the slow ones they replace.
 
-- The block CUSUM of the offline replay (skips stretches where a zero CUSUM stays zero)
-  against :meth:`ChangeDetector._cusum` row by row: the same first alarm row and, after it
-  or after the block, the same CUSUM state (values, last zeros, rises).
+- The block CUSUM of the offline replay (skips stretches where a zero CUSUM stays zero; and
+  its C kernel, guardid/online/replay_rows.c) against :meth:`ChangeDetector._cusum` row by
+  row: the same first alarm row and, after it or after the block, the same CUSUM state
+  (values, last zeros, rises).
 - ``condition`` a column at a time and with ``keep_every``: every output equal to the
   whole-array steps (scipy's filter, the stencils, the spline alignment on both columns at
   once) and to ``decimate=1`` sliced, counts of every sample kept.
@@ -31,8 +32,18 @@ def _armed(sigma):
     return det
 
 
+def _c_cusum(det, t, z, ok):
+    from guardid.online import replay_native
+
+    lib = replay_native.kernel()
+    if lib is None:
+        pytest.skip("needs a C compiler")
+    return replay_native.cusum_rows(lib, det, t, z, ok)
+
+
+@pytest.mark.parametrize("block_cusum", [_cusum_block, _c_cusum], ids=["numpy", "c"])
 @pytest.mark.parametrize("seed", range(6))
-def test_block_cusum_matches_the_detector_row_by_row(seed):
+def test_block_cusum_matches_the_detector_row_by_row(seed, block_cusum):
     rng = np.random.default_rng(seed)
     L = 3000
     sigma = np.array([0.5, 2.0])
@@ -53,7 +64,7 @@ def test_block_cusum_matches_the_detector_row_by_row(seed):
             fired = i
             break
     assert (fired is not None) == bool(seed % 2)  # the bursts alone never fire
-    got = _cusum_block(block, t, e / sigma, ok)
+    got = block_cusum(block, t, e / sigma, ok)
     assert got == fired
     assert block._g == live._g
     assert block._zero_t == live._zero_t

@@ -187,12 +187,26 @@ def _equations(tk, q, qd, qdd, tau):
     """Base regressor rows A (M, n, b) of the identified columns and torques y (M, n) [N m]
     of the used samples, as :meth:`OnlineIdentifier._estimate` forms them one by one."""
     model = tk.model
-    A_all = model.base_regressor(q, qd, qdd)
+    b = len(tk.free)
+    fixed = tk._fixed
+    A = _base_columns(model, q, qd, qdd, tk.free if fixed is None else [*tk.free, *fixed[0]])
     y = tau
     if tk._known:
         y = y - model.known_torque(q, qd, qdd)
-    if tk._fixed is not None:
-        cols, vals = tk._fixed
-        y = y - A_all[:, :, cols] @ vals
-    A = np.ascontiguousarray(A_all[:, :, tk.free])
-    return A, np.ascontiguousarray(y, dtype=float)
+    if fixed is not None:
+        y = y - A[:, :, b:] @ fixed[1]
+    return np.ascontiguousarray(A[:, :, :b]), np.ascontiguousarray(y, dtype=float)
+
+
+def _base_columns(model, q, qd, qdd, cols):
+    """``model.base_regressor(q, qd, qdd)[:, :, cols]`` (M, n, len(cols)), C-ordered; a
+    chain's as one matrix product of its full regressor's (M n, P) rows (numpy's (M, n, P)
+    @ (P, b) is a product per sample, several times slower)."""
+    from guardid.dynamics import ChainModel
+
+    if not isinstance(model, ChainModel):
+        return np.ascontiguousarray(model.base_regressor(q, qd, qdd)[:, :, cols])
+    Y = model.regressor(q, qd, qdd)
+    M, n, P = Y.shape
+    B = np.ascontiguousarray(model.base.B[:, cols])
+    return (Y.reshape(M * n, P) @ B).reshape(M, n, len(cols))

@@ -1,0 +1,113 @@
+"""The replay's per-row recursions in C (``replay_rows.c`` beside this module), a block of
+rows per call through ctypes: RLS in information form and the windowed Hopfield network
+:data:`~guardid.online.replay_loop.HOPFIELD_ROWS_PER_STEP` rows a step, the arithmetic of
+the numpy fast path of :mod:`guardid.online.replay_loop` row after row (the same estimates
+to round-off: tests/test_replay_native.py), without its (block, p, p) arrays.
+
+Built once into guardid's cache by :func:`guardid.native.cached_library`; without a
+compiler, with a cache directory that cannot be written or a library that does not load
+(or with :data:`USE_NATIVE` False) :func:`kernel` is None and the replay keeps its numpy
+path; a compiler error in the source raises :class:`guardid.native.NativeBuildError`.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+SOURCE = Path(__file__).with_name("replay_rows.c")
+USE_NATIVE = True
+"""False: the replay takes its numpy path even where the C kernel builds (tests, bench)."""
+
+_INT, _DBL, _PTR = ctypes.c_int, ctypes.c_double, ctypes.c_void_p
+
+
+@lru_cache(maxsize=1)
+def _load():
+    from guardid.native import cached_library
+
+    try:  # a compiler error raises (a source bug); a cache or loader that fails: numpy
+        path = cached_library("replay_rows", [SOURCE])
+        lib = None if path is None else ctypes.CDLL(str(path))
+    except OSError:
+        return None
+    if lib is None:
+        return None
+    lib.guardid_rls_rows.argtypes = [_INT, _INT, _INT, _PTR, _PTR, _DBL, *[_PTR] * 6]
+    lib.guardid_rls_rows.restype = _INT
+    lib.guardid_hopfield_rows.argtypes = [
+        _INT, _INT, _INT, _INT, _PTR, _PTR, _DBL, _PTR, _PTR, _PTR, _DBL, _DBL, _DBL,
+        *[_PTR] * 6,
+    ]  # fmt: skip
+    lib.guardid_hopfield_rows.restype = _INT
+    lib.guardid_information_rows.argtypes = [_INT, _INT, _INT, _PTR, _DBL, _PTR, _PTR]
+    lib.guardid_information_rows.restype = None
+    lib.guardid_cusum_rows.argtypes = [_INT, _INT, _PTR, _PTR, _PTR, _DBL, _DBL, *[_PTR] * 3]
+    lib.guardid_cusum_rows.restype = _INT
+    return lib
+
+
+def kernel():
+    """The loaded C library, or None (no compiler, or :data:`USE_NATIVE` off)."""
+    return _load() if USE_NATIVE else None
+
+
+def _c(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=float)
+
+
+def rls_rows(lib, A, y, lam, f, W, theta):
+    """RLS over the rows A (L, n, p), y (L, n) from the information W (p, p) and estimate
+    theta (p,), both updated in place: (estimates after each row (L, p), a-priori
+    residuals (L, n)), or None when a row's system is not positive definite (W and theta
+    then partly updated)."""
+    L, n, p = A.shape
+    A, y = _c(A), _c(y)
+    post, resid, work = np.empty((L, p)), np.empty((L, n)), np.empty(p * p + 2 * p)
+    args = [A, y, f, W, theta, post, resid, work]
+    if lib.guardid_rls_rows(L, n, p, A.ctypes.data, y.ctypes.data, lam,
+                            *(a.ctypes.data for a in args[2:])):  # fmt: skip
+        return None
+    return post, resid
+
+
+def hopfield_rows(lib, A, y, lam, f, S, c, g, K, tau, smax, W, b, s):
+    """The windowed Hopfield network over A (L, n, p), y (L, n), ``K`` rows a step, from
+    the weights W (p, p), biases b (p,) and state s (p,), all updated in place: (states
+    after each row (L, p), a-priori residuals (L, n)), or None when a step's system is not
+    positive definite."""
+    L, n, p = A.shape
+    A, y = _c(A), _c(y)
+    states, resid = np.empty((L, p)), np.empty((L, n))
+    work = np.empty(2 * p * p + K * p + 9 * p + 2 * K)
+    ptrs = [a.ctypes.data for a in (W, b, s, states, resid, work)]
+    code = lib.guardid_hopfield_rows(
+        L, n, p, K, A.ctypes.data, y.ctypes.data, lam, f.ctypes.data, S.ctypes.data,
+        c.ctypes.data, g, tau, smax, *ptrs,
+    )  # fmt: skip
+    return None if code else (states, resid)
+
+
+def information_rows(lib, A, lam, f, W) -> None:
+    """W (p, p) <- the information after the rows A (L, n, p), in place."""
+    L, n, p = A.shape
+    A = _c(A)
+    lib.guardid_information_rows(L, n, p, A.ctypes.data, lam, f.ctypes.data, W.ctypes.data)
+
+
+def cusum_rows(lib, det, t, z, ok):
+    """The two-sided CUSUM of the armed detector ``det`` over t (L,) [s], z (L, n)
+    residuals in sigma, ok (L, n) present joint equations, its state advanced (as
+    :func:`guardid.online.replay_loop._cusum_block`): the row of the first alarm or None."""
+    L, n = z.shape
+    t, z = _c(t), _c(z)
+    ok = np.ascontiguousarray(ok, dtype=np.bool_)
+    state = [np.array(x, dtype=float) for x in (det._g, det._zero_t, det._rise_t)]
+    s = det.settings
+    first = lib.guardid_cusum_rows(L, n, t.ctypes.data, z.ctypes.data, ok.ctypes.data,
+                                   s.kappa, s.h, *(x.ctypes.data for x in state))  # fmt: skip
+    det._g, det._zero_t, det._rise_t = (x.tolist() for x in state)
+    return None if first < 0 else first
