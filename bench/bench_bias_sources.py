@@ -45,6 +45,7 @@ EXCITATIONS = {
     "default": [],
     "tracking": ["--base-freq", "0.2", "--harmonics", "3"],
     "schroeder": ["--kind", "schroeder"],
+    "fast": ["--base-freq", "0.25", "--harmonics", "5"],  # bench_std_check's fast120
 }
 _TRUTH: list = []
 _STEP = plant_module.Plant.step_sensors
