@@ -163,6 +163,15 @@ def test_a_compile_error_warns_and_means_the_python_path(monkeypatch, tmp_path):
         assert fastcodec._load() is None
 
 
+def test_a_cache_it_cannot_write_warns_and_means_the_python_path(monkeypatch, tmp_path):
+    """The cache directory under a file (as a read-only home would): a warning and the
+    Python path, not an OSError out of every Encoder and FrameParser (a capture stopped)."""
+    (tmp_path / "file").write_text("")
+    monkeypatch.setenv("GUARDID_CACHE_DIR", str(tmp_path / "file" / "cache"))
+    with pytest.warns(UserWarning, match="C fast path is off: .*Not a directory"):
+        assert fastcodec._load() is None
+
+
 def test_no_compiler_or_switched_off_means_the_python_path(monkeypatch):
     monkeypatch.setenv("GUARDID_NATIVE", "0")
     assert fastcodec._load() is None

@@ -6,9 +6,10 @@ kind out of a chunk, making the Python objects itself: the per-frame COBS, CRC a
 calls of the Python path in one call. Built once into the cache by
 :func:`guardid.native.cached_library`. :func:`module` is None without a C compiler, without
 Python's headers, without the sources (an install without ``firmware_proto/``), when it
-does not compile (a warning says why) or with ``GUARDID_NATIVE=0``: then
-:class:`guardid.protocol.FrameParser` and :meth:`guardid.protocol.Encoder.packer` take their
-Python path, which gives the same bytes, frames and counters (tests/test_protocol_fast.py).
+does not compile, cannot be written to the cache or does not load (a warning says why) or
+with ``GUARDID_NATIVE=0``: then :class:`guardid.protocol.FrameParser` and
+:meth:`guardid.protocol.Encoder.packer` take their Python path, which gives the same bytes,
+frames and counters (tests/test_protocol_fast.py).
 """
 
 from __future__ import annotations
@@ -46,14 +47,14 @@ def _load() -> ModuleType | None:
     paths = [FIRMWARE_DIR / s for s in SOURCES]
     if not (Path(include) / "Python.h").is_file() or not all(p.is_file() for p in paths):
         return None
-    try:
+    try:  # a build that fails, a cache it cannot write, a library that does not load
         lib = cached_library(NAME, paths, (*HOST_CFLAGS, f"-I{include}"))
-    except NativeBuildError as exc:  # a speed-up only: say so once, go on in Python
+        if lib is None:
+            return None
+        loader = importlib.machinery.ExtensionFileLoader(NAME, str(lib))
+        mod = importlib.util.module_from_spec(importlib.util.spec_from_loader(NAME, loader))
+        loader.exec_module(mod)
+    except (NativeBuildError, OSError, ImportError) as exc:  # a speed-up only: say so once
         warnings.warn(f"guardid: the protocol's C fast path is off: {exc}", stacklevel=2)
         return None
-    if lib is None:
-        return None
-    loader = importlib.machinery.ExtensionFileLoader(NAME, str(lib))
-    mod = importlib.util.module_from_spec(importlib.util.spec_from_loader(NAME, loader))
-    loader.exec_module(mod)
     return mod
