@@ -75,6 +75,21 @@ def test_a_system_not_positive_definite_is_reported(lib):
     assert replay_native.rls_rows(lib, A, y, 0.9, np.zeros(4), -np.eye(4), np.zeros(4)) is None
 
 
+@pytest.mark.parametrize(
+    "W, theta",
+    [(np.eye(4, dtype=np.float32), np.zeros(4)), (np.eye(4)[:, ::-1], np.zeros(4)),
+     (np.eye(3), np.zeros(4)), (np.eye(4), np.zeros(5))],
+)  # fmt: skip
+def test_a_state_of_another_dtype_layout_or_shape_is_refused_before_the_call(lib, W, theta):
+    """The C reads and writes p * p doubles from W's first byte: a float32, a reversed view
+    or a wrong shape is a ValueError, not memory read or written out of bounds."""
+    A, y = np.ones((3, 2, 4)), np.ones((3, 2))
+    with pytest.raises(ValueError, match="replay kernel"):
+        replay_native.rls_rows(lib, A, y, 0.9, np.zeros(4), W, theta)
+    with pytest.raises(ValueError, match="replay kernel"):
+        replay_native.rls_rows(lib, A, y[:, :1], 0.9, np.zeros(4), np.eye(4), np.zeros(4))
+
+
 @pytest.fixture(scope="module")
 def tracker():
     return OnlineIdentifier(GUARD, ("hopfield",), detector=False, keep_history=False)

@@ -55,8 +55,22 @@ def kernel():
     return _load() if USE_NATIVE else None
 
 
-def _c(a: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(a, dtype=float)
+def _c(a: np.ndarray, shape: tuple[int, ...] | None = None) -> np.ndarray:
+    """``a`` as C-ordered float64 (a copy when it is not), of ``shape`` when given."""
+    a = np.ascontiguousarray(a, dtype=float)
+    if shape is not None and a.shape != shape:
+        raise ValueError(f"replay kernel: an input of shape {a.shape}, expected {shape}")
+    return a
+
+
+def _inout(a: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """``a``, which the kernel updates in place: refused unless C-ordered writable float64
+    of ``shape`` (the C reads and writes ``prod(shape)`` doubles from its first)."""
+    ok = isinstance(a, np.ndarray) and a.dtype == np.float64 and a.shape == shape
+    if not (ok and a.flags.c_contiguous and a.flags.writeable):
+        what = f"{getattr(a, 'dtype', type(a).__name__)} {getattr(a, 'shape', '')}"
+        raise ValueError(f"replay kernel: a state of {what}, expected C-ordered float64 {shape}")
+    return a
 
 
 def rls_rows(lib, A, y, lam, f, W, theta):
@@ -65,7 +79,8 @@ def rls_rows(lib, A, y, lam, f, W, theta):
     residuals (L, n)), or None when a row's system is not positive definite (W and theta
     then partly updated)."""
     L, n, p = A.shape
-    A, y = _c(A), _c(y)
+    A, y, f = _c(A), _c(y, (L, n)), _c(f, (p,))
+    W, theta = _inout(W, (p, p)), _inout(theta, (p,))
     post, resid, work = np.empty((L, p)), np.empty((L, n)), np.empty(p * p + 2 * p)
     args = [A, y, f, W, theta, post, resid, work]
     if lib.guardid_rls_rows(L, n, p, A.ctypes.data, y.ctypes.data, lam,
@@ -80,7 +95,11 @@ def hopfield_rows(lib, A, y, lam, f, S, c, g, K, tau, smax, W, b, s):
     after each row (L, p), a-priori residuals (L, n)), or None when a step's system is not
     positive definite."""
     L, n, p = A.shape
-    A, y = _c(A), _c(y)
+    A, y = _c(A), _c(y, (L, n))
+    f, S, c = (_c(x, (p,)) for x in (f, S, c))
+    W, b, s = _inout(W, (p, p)), _inout(b, (p,)), _inout(s, (p,))
+    if int(K) < 1:
+        raise ValueError(f"replay kernel: {K} rows a step, expected at least 1")
     states, resid = np.empty((L, p)), np.empty((L, n))
     work = np.empty(2 * p * p + K * p + 9 * p + 2 * K)
     ptrs = [a.ctypes.data for a in (W, b, s, states, resid, work)]
@@ -94,7 +113,7 @@ def hopfield_rows(lib, A, y, lam, f, S, c, g, K, tau, smax, W, b, s):
 def information_rows(lib, A, lam, f, W) -> None:
     """W (p, p) <- the information after the rows A (L, n, p), in place."""
     L, n, p = A.shape
-    A = _c(A)
+    A, f, W = _c(A), _c(f, (p,)), _inout(W, (p, p))
     lib.guardid_information_rows(L, n, p, A.ctypes.data, lam, f.ctypes.data, W.ctypes.data)
 
 
@@ -103,9 +122,11 @@ def cusum_rows(lib, det, t, z, ok):
     residuals in sigma, ok (L, n) present joint equations, its state advanced (as
     :func:`guardid.online.replay_loop._cusum_block`): the row of the first alarm or None."""
     L, n = z.shape
-    t, z = _c(t), _c(z)
+    t, z = _c(t, (L,)), _c(z)
     ok = np.ascontiguousarray(ok, dtype=np.bool_)
-    state = [np.array(x, dtype=float) for x in (det._g, det._zero_t, det._rise_t)]
+    if ok.shape != (L, n):
+        raise ValueError(f"replay kernel: ok of shape {ok.shape}, expected {(L, n)}")
+    state = [_c(np.array(x, dtype=float), (2, n)) for x in (det._g, det._zero_t, det._rise_t)]
     s = det.settings
     first = lib.guardid_cusum_rows(L, n, t.ctypes.data, z.ctypes.data, ok.ctypes.data,
                                    s.kappa, s.h, *(x.ctypes.data for x in state))  # fmt: skip
