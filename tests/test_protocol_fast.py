@@ -120,6 +120,25 @@ def test_routed_telemetry_reaches_a_deque_or_a_function_in_order():
         assert got[5] == Telemetry(5, 0, 1, (5, -5), (2, 3), (4, 5), (6, 7))
 
 
+class _EmptySink(list):
+    """A sink that is falsy while empty (a collection with a __call__)."""
+
+    def __call__(self, msg):
+        self.append(msg)
+
+
+def test_a_sink_that_is_falsy_gets_messages_not_frames():
+    """The scan wraps messages in Frame only where no route takes them: ``if sink`` would
+    take an empty collection's sink for no route and hand it Frame tuples."""
+    pack = P.Encoder(0).packer(M["TELEMETRY"], 2)
+    sink, parser = _EmptySink(), P.FrameParser()
+    parser.route(M["TELEMETRY"].MSG_ID, Telemetry, sink)
+    parser.feed(pack(1, 0, 1, 1, 2, 3, 4, 5, 6, 7, 8))  # the Python path: its kind known
+    sink.clear()
+    parser.feed(b"".join(pack(k, 0, 1, k, 2, 3, 4, 5, 6, 7, 8) for k in (2, 3)))  # the scan
+    assert sink == [Telemetry(k, 0, 1, (k, 2), (3, 4), (5, 6), (7, 8)) for k in (2, 3)]
+
+
 def _lockstep_run(url: str, ticks: int):
     """(bytes read, bytes written, counters, telemetry) of a run-ahead closed-loop run."""
     port = lean.AheadRecorder(open_port(url))

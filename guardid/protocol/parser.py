@@ -194,8 +194,9 @@ class FrameParser:
         _, cls, _, sink = self._table[(mid, n)]
         d = mid >> 7
         exp = self._expect[d]
+        wrap = Frame if sink is None else None  # a routed sink takes messages (even if falsy)
         frames, used, nxt = self._scan(chunk, mid, n, -1 if exp is None else exp,
-                                       _N_FIXED[mid], cls, None if sink else Frame)  # fmt: skip
+                                       _N_FIXED[mid], cls, wrap)  # fmt: skip
         if not frames:
             return chunk
         self._expect[d] = nxt
