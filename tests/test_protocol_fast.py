@@ -139,6 +139,15 @@ def test_a_sink_that_is_falsy_gets_messages_not_frames():
     assert sink == [Telemetry(k, 0, 1, (k, 2), (3, 4), (5, 6), (7, 8)) for k in (2, 3)]
 
 
+@pytest.mark.parametrize("n_fixed", [-1, -(2**40), 65])
+def test_scan_refuses_a_fixed_field_count_out_of_range(n_fixed):
+    """A negative count would index the value array and the new tuple before their start."""
+    frame = P.Encoder(0).packer(M["TELEMETRY"], 2)(1, 0, 1, 1, 2, 3, 4, 5, 6, 7, 8)
+    with pytest.raises(ValueError, match="n_fixed"):
+        fastcodec.module().scan(frame, M["TELEMETRY"].MSG_ID, len(frame) - 2, -1, n_fixed,
+                                tuple, None)  # fmt: skip
+
+
 def _lockstep_run(url: str, ticks: int):
     """(bytes read, bytes written, counters, telemetry) of a run-ahead closed-loop run."""
     port = lean.AheadRecorder(open_port(url))

@@ -255,6 +255,10 @@ static PyObject *py_scan(PyObject *self, PyObject *args)
         PyErr_SetString(PyExc_TypeError, "scan: cls and frame_cls must be tuple types");
         return NULL;
     }
+    if (n_fixed < 0 || n_fixed > MAX_VALS) { /* message() indexes v and the tuple by it */
+        PyErr_SetString(PyExc_ValueError, "scan: n_fixed out of range");
+        return NULL;
+    }
     list = PyList_New(0);
     if (list == NULL)
         return NULL;
