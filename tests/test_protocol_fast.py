@@ -11,6 +11,7 @@ from __future__ import annotations
 import collections
 import os
 import random
+import sys
 
 import numpy as np
 import pytest
@@ -211,3 +212,10 @@ def test_no_compiler_or_switched_off_means_the_python_path(monkeypatch):
     assert parser._scan is None
     frame = P.encode(M["PING"](5), 1)
     assert parser.feed(frame + frame) == [P.Frame(2, 1, M["PING"](5))] * 2
+
+
+def test_a_python_from_max_python_on_means_the_python_path(monkeypatch):
+    monkeypatch.setattr(fastcodec, "MAX_PYTHON", tuple(sys.version_info[:2]))
+    assert fastcodec._load() is None
+    monkeypatch.setattr(fastcodec, "MAX_PYTHON", (sys.version_info[0] + 1, 0))
+    assert fastcodec._load() is not None

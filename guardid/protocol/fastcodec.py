@@ -6,15 +6,17 @@ kind out of a chunk, making the Python objects itself: the per-frame COBS, CRC a
 calls of the Python path in one call. Built once into the cache by
 :func:`guardid.native.cached_library`. :func:`module` is None without a C compiler, without
 Python's headers, without the sources (an install without ``firmware_proto/``), when it
-does not compile, cannot be written to the cache or does not load (a warning says why) or
-with ``GUARDID_NATIVE=0``: then :class:`guardid.protocol.FrameParser` and
-:meth:`guardid.protocol.Encoder.packer` take their Python path, which gives the same bytes,
-frames and counters (tests/test_protocol_fast.py).
+does not compile, cannot be written to the cache or does not load (a warning says why),
+with ``GUARDID_NATIVE=0`` or on a Python from :data:`MAX_PYTHON` on: then
+:class:`guardid.protocol.FrameParser` and :meth:`guardid.protocol.Encoder.packer` take
+their Python path, which gives the same bytes, frames and counters
+(tests/test_protocol_fast.py).
 """
 
 from __future__ import annotations
 
 import os
+import sys
 import warnings
 from pathlib import Path
 from types import ModuleType
@@ -22,6 +24,11 @@ from types import ModuleType
 FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware_proto"
 SOURCES = ("host/gp_pyext.c", "guard_proto.c", "guard_proto.h", "guard_proto_msgs.h")
 NAME = "gp_pyext"
+MAX_PYTHON = (3, 14)
+"""The extension makes its messages with the tuple type's ``tp_alloc`` (zero-filled); a
+CPython that caches a tuple's hash in the object (main, from about 3.14) would read 0 as a
+cached hash, so messages made in C would hash unlike equal ones made in Python. Untested
+there: from this version on the Python path runs."""
 
 _module: ModuleType | None | bool = False  # False: not looked for yet
 
@@ -35,7 +42,7 @@ def module() -> ModuleType | None:
 
 
 def _load() -> ModuleType | None:
-    if os.environ.get("GUARDID_NATIVE", "1") == "0":
+    if os.environ.get("GUARDID_NATIVE", "1") == "0" or sys.version_info >= MAX_PYTHON:
         return None
     import importlib.machinery  # here: commands that never parse a frame do not pay them
     import importlib.util
