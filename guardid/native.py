@@ -7,7 +7,8 @@ outside the repository (``$GUARDID_CACHE_DIR``, else ``$XDG_CACHE_HOME/guardid``
 so that a changed source builds anew and concurrent builders agree.
 
 A fast path must keep working without a compiler: :func:`cached_library` returns None
-there and the caller takes its numpy path.
+there, or when the environment has ``GUARDID_NATIVE=0`` (every fast path off, for a
+comparison or a suspected fast-path bug), and the caller takes its numpy path.
 """
 
 from __future__ import annotations
@@ -77,9 +78,11 @@ def cached_library(
     name: str, sources: Sequence[Path], cflags: Sequence[str] = HOST_CFLAGS
 ) -> Path | None:
     """The shared library ``lib<name>-<hash>.so`` built from ``sources`` (C files, headers
-    included in the hash when listed) with ``cflags``; None when no compiler is found, so
-    that the caller falls back to its Python path. A compiler error raises
+    included in the hash when listed) with ``cflags``; None when no compiler is found or
+    ``GUARDID_NATIVE=0``, so that the caller falls back to its Python path. A compiler error raises
     :class:`NativeBuildError` (a source bug, not a machine's lack)."""
+    if os.environ.get("GUARDID_NATIVE", "1") == "0":
+        return None
     cc = find_compiler()
     if cc is None:
         return None

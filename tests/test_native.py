@@ -25,10 +25,15 @@ def test_a_source_is_built_once_and_runs(tmp_path, monkeypatch):
     assert cached_library("add", [src]) != lib  # a changed source: a new library
 
 
-def test_no_compiler_means_no_library(tmp_path, monkeypatch):
-    monkeypatch.setenv("CC", "/nonexistent/cc")
+def test_no_compiler_or_switched_off_means_no_library(tmp_path, monkeypatch):
+    monkeypatch.setenv("GUARDID_CACHE_DIR", str(tmp_path / "cache"))
     src = tmp_path / "x.c"
     src.write_text("int x(void) { return 1; }\n")
+    monkeypatch.setenv("GUARDID_NATIVE", "0")
+    assert cached_library("x", [src]) is None
+    monkeypatch.delenv("GUARDID_NATIVE")
+    assert cached_library("x", [src]) is not None
+    monkeypatch.setenv("CC", "/nonexistent/cc")
     assert cached_library("x", [src]) is None
 
 
