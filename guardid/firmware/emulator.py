@@ -31,14 +31,17 @@ sequence gap.
 from __future__ import annotations
 
 import math
+import struct
 from collections import deque
 from functools import cache
 from math import floor
 
 from guardid.errors import ConfigError
 from guardid.firmware.pid import FixedPid, counts_per_joint_rev, mv_from_volts, pid_gains_q16
-from guardid.protocol import ENUMS, PROTOCOL_VERSION, Encoder, FrameParser
+from guardid.protocol import ENUMS, PROTOCOL_VERSION, Encoder, FrameParser, fastcodec
 from guardid.protocol import MESSAGES as M
+from guardid.protocol.codec import MAX_JOINTS
+from guardid.protocol.codec import _fast_config as fast_config
 
 MODE = ENUMS["mode"]
 ERR = ENUMS["error"]
@@ -161,6 +164,21 @@ class FirmwareEmulator:
         self.encoder = Encoder()
         self._telemetry_frame = self.encoder.packer(TELEMETRY, self.n)  # per-tick fast path
         self._read_plant = getattr(plant, "step_sensors", None) or self._sample_fields
+        # the position-mode tick in C (fastcodec's extension; None: the Python path), its
+        # drive facts per joint as int64s: has limits, limits [counts], levels, supply [mV],
+        # saturated and limit status bits
+        fast = fastcodec.module()
+        bounds = [lim or (0, 0) for lim, *_ in self._per_joint]
+        fits = self.n <= MAX_JOINTS and all(abs(b) < 2**62 for pair in bounds for b in pair)
+        self._pid_pwm = fast.pid_pwm if fast is not None and fits else None
+        self._telemetry_c = fast.telemetry if fast is not None and fits else None
+        self._telemetry_cfg = fast_config(TELEMETRY.SPEC, self.n) if fits else b""
+        self._drives = b"".join(
+            struct.pack("=7q", lim is not None, *b, levels, supply, sat, stop)
+            for (lim, levels, supply, _), b, sat, stop in zip(
+                self._per_joint, bounds, SATURATED_BITS, LIMIT_BITS, strict=False
+            )
+        )  # (fits: n <= MAX_JOINTS, the number of status bits of each kind)
         self._last_frame = None  # (msg_id, seq, message) of the previous host frame
         self._last_reply = None  # its ACK/NAK, resent if the same frame comes again
         # _HANDLERS (a subclass may replace some) by message id, a parsed frame's first field
@@ -379,8 +397,15 @@ class FirmwareEmulator:
                 due = True
             if not due and not self.setpoint_hold:
                 status |= UNDERRUN_BIT
-            out = []
             setpoint, feedforward = self.setpoint, self.feedforward_mv
+            fast = self._pid_pwm
+            if fast is not None:  # the C extension: PID, limit stop and PWM in one call
+                done = fast(self.pids, setpoint, counts, feedforward, self._drives)
+                if done is not None:
+                    self.applied_mv, bits = done
+                    self._finish_tick(tick, mode, status | bits, volts, amps)
+                    return
+            out = []
             for j, pid in enumerate(self.pids):
                 out.append(pid.step(setpoint[j], counts[j], feedforward[j]))
                 if pid.saturated:
@@ -404,6 +429,10 @@ class FirmwareEmulator:
             else:
                 applied.append(pwm_mv(mv, levels, supply))
         self.applied_mv = applied
+        self._finish_tick(tick, mode, status, volts, amps)
+
+    def _finish_tick(self, tick: int, mode: int, status: int, volts, amps) -> None:
+        """The tick's end: the status bits [and TELEMETRY (voltage [V], current [A])]."""
         if self.watchdog_tripped:
             status |= WATCHDOG_BIT
         if self.estop:
@@ -414,7 +443,16 @@ class FirmwareEmulator:
             # packed from its flattened values (the bytes encode() gives for the message);
             # voltage [V] and current [A] to milli-units (rounded half up), clamped to int16
             # (the packer refuses a value out of range without numbering a frame)
-            frame, setpoint = self._telemetry_frame, self.setpoint
+            frame, counts, setpoint = self._telemetry_frame, self.counts, self.setpoint
+            fast = self._telemetry_c
+            if fast is not None:  # the C extension: rounding, clamping and packing in one
+                encoder = self.encoder
+                out = fast(self._telemetry_cfg, encoder.seq, tick, status, mode, counts,
+                           volts, amps, setpoint)  # fmt: skip
+                if out is not None:
+                    encoder.seq = (encoder.seq + 1) & 0xFFFF
+                    self._out += out
+                    return
             milli = [floor(x * 1000.0 + 0.5) for x in (*volts, *amps)]
             try:
                 self._out += frame(tick, status, mode, *counts, *milli, *setpoint)
