@@ -74,7 +74,7 @@ def test_pid_pwm_is_the_python_tick_on_random_states():
                   for p in pids]  # fmt: skip
         for _ in range(5):
             setpoint = [rng.randrange(-6000, 6000) for _ in range(n)]
-            counts = [rng.randrange(-6000, 6000) for _ in range(n)]
+            counts = [rng.choice([rng.randrange(-6000, 6000), -3000, 2500]) for _ in range(n)]
             feedforward = [rng.choice([0, rng.randrange(-5000, 5000)]) for _ in range(n)]
             want = _python_tick(twins, setpoint, counts, feedforward, drives)
             got = fast(pids, setpoint, counts, feedforward, _pack(drives))
