@@ -357,14 +357,15 @@ static int int_items(PyObject *items, Py_ssize_t n, long long bound, int64_t *v)
 #define MAX_TICK_JOINTS 8
 #define DRIVE_VALS 7 /* per joint: has limits, low, high [counts], levels, supply [mV], bits */
 
-/* pid_pwm(pids, setpoint, counts, feedforward, drives) -> (applied [mV] list, status) | None:
+/* pid_pwm(pids, setpoint, counts, feedforward, drives) -> (applied [mV] list, status, the
+   same in V: mv * 1e-3) | None:
    one position-mode tick: each joint's PID step (FixedPid.step: its state updated), then
    the stop at a position limit and the PWM quantisation. drives: per joint the int64s has
    limits, low, high, PWM levels, supply [mV], saturated bit, limit bit. None (nothing
    changed) when a value is not an int of the range this int64 arithmetic is exact for. */
 static PyObject *py_pid_pwm(PyObject *self, PyObject *args)
 {
-    PyObject *pids, *setpoint, *counts, *feedforward, *applied, *result;
+    PyObject *pids, *setpoint, *counts, *feedforward, *applied, *volts, *result;
     const char *drives_bytes;
     Py_ssize_t drives_len, n, j;
     int64_t drive[MAX_TICK_JOINTS * DRIVE_VALS], sp[MAX_TICK_JOINTS], pos[MAX_TICK_JOINTS];
@@ -417,15 +418,24 @@ static PyObject *py_pid_pwm(PyObject *self, PyObject *args)
         out[j] = mv >= 0 ? duty : -duty;
     }
     applied = PyList_New(n);
-    if (applied == NULL)
+    volts = PyList_New(n);
+    if (applied == NULL || volts == NULL) {
+        Py_XDECREF(applied);
+        Py_XDECREF(volts);
         return NULL;
+    }
     for (j = 0; j < n; ++j) {
         PyObject *o = PyLong_FromLongLong(out[j]);
-        if (o == NULL) {
+        PyObject *v = PyFloat_FromDouble((double)out[j] * 1e-3); /* Python's mv * 1e-3 */
+        if (o == NULL || v == NULL) {
+            Py_XDECREF(o);
+            Py_XDECREF(v);
             Py_DECREF(applied);
+            Py_DECREF(volts);
             return NULL;
         }
         PyList_SET_ITEM(applied, j, o);
+        PyList_SET_ITEM(volts, j, v);
     }
     for (j = 0; j < n; ++j) { /* the state, once every joint's step is known */
         PyObject *pid = PyList_GET_ITEM(pids, j);
@@ -439,10 +449,11 @@ static PyObject *py_pid_pwm(PyObject *self, PyObject *args)
         Py_XDECREF(i);
         if (bad) {
             Py_DECREF(applied);
+            Py_DECREF(volts);
             return NULL;
         }
     }
-    result = Py_BuildValue("(NL)", applied, (long long)status);
+    result = Py_BuildValue("(NLN)", applied, (long long)status, volts);
     return result;
 }
 

@@ -186,6 +186,7 @@ class FirmwareEmulator:
             c.MSG_ID: self._HANDLERS[c.__name__] for c in M.values() if c.__name__ in self._HANDLERS
         }
         self._out = bytearray()
+        self._applied_of = self._applied_v = None  # the C tick's applied_mv and it in V
         self.tick = 0
         self.mode = MODE["idle"]
         self.streaming = False
@@ -200,7 +201,9 @@ class FirmwareEmulator:
         self.feedforward_mv = self._no_feedforward  # added to the PID output (SETPOINT_FF)
         self.setpoint_hold = True  # no underrun before the first streamed setpoint
         self.voltage_cmd_mv = [0] * self.n
-        self.applied_mv = [0] * self.n  # after limits and PWM, held over the next period
+        # after limits and PWM, held over the next period (replaced, not changed in place,
+        # once the C tick ran: _applied_v holds it in V)
+        self.applied_mv = [0] * self.n
         self.counts = [0] * self.n
         self.status = 0
 
@@ -375,7 +378,9 @@ class FirmwareEmulator:
     # ------------------------------------------------------------------ the 15 ms tick
     def advance(self) -> None:
         """One sample period of the plant, then the firmware's tick (module docstring)."""
-        counts, volts, amps = self._read_plant([mv * 1e-3 for mv in self.applied_mv])
+        applied = self.applied_mv  # [V] from the C tick when it made that list
+        u = self._applied_v if applied is self._applied_of else [mv * 1e-3 for mv in applied]
+        counts, volts, amps = self._read_plant(u)
         self.tick = tick = (self.tick + 1) & TICK_MASK
         self.counts = counts
         status = 0
@@ -402,7 +407,8 @@ class FirmwareEmulator:
             if fast is not None:  # the C extension: PID, limit stop and PWM in one call
                 done = fast(self.pids, setpoint, counts, feedforward, self._drives)
                 if done is not None:
-                    self.applied_mv, bits = done
+                    self.applied_mv, bits, self._applied_v = done
+                    self._applied_of = self.applied_mv
                     self._finish_tick(tick, mode, status | bits, volts, amps)
                     return
             out = []
