@@ -289,18 +289,14 @@ class FirmwareEmulator:
         self.pids[msg.joint].set_gains(gains)
         self._ack(frame)
 
-    def _on_setpoint(self, frame) -> None:
-        tick, flags, position = frame.msg
-        self._queue_setpoint(frame, tick, flags, position)
-
     def _on_setpoint_ff(self, frame) -> None:
-        tick, flags, position, feedforward = frame.msg
-        self._queue_setpoint(frame, tick, flags, position, list(feedforward))
+        self._on_setpoint(frame, list(frame.msg[3]))
 
-    def _queue_setpoint(self, frame, tick, flags, position, feedforward_mv=None) -> None:
+    def _on_setpoint(self, frame, feedforward_mv=None) -> None:
         """Queue (tick, position, hold) for SETPOINT, (tick, position, hold, feedforward [mV])
         for SETPOINT_FF (a 3-tuple entry means no feedforward), or NAK."""
-        buffer = self.buffer
+        msg, buffer = frame.msg, self.buffer
+        tick, flags, position = msg[0], msg[1], msg[2]
         if len(position) != self.n:
             return self._nak(frame, "bad_joint")
         if self.estop:
@@ -391,6 +387,7 @@ class FirmwareEmulator:
             self._enter_mode(IDLE)
             self._send(M["FAULT"](tick, FAULT["watchdog"], 0xFF, silent_ms))
             mode = IDLE
+        done = None  # the C tick's (applied [mV], status bits, applied [V])
         if mode == POSITION:
             due = False
             buffer = self.buffer
@@ -403,42 +400,38 @@ class FirmwareEmulator:
             if not due and not self.setpoint_hold:
                 status |= UNDERRUN_BIT
             setpoint, feedforward = self.setpoint, self.feedforward_mv
-            fast = self._pid_pwm
-            if fast is not None:  # the C extension: PID, limit stop and PWM in one call
-                done = fast(self.pids, setpoint, counts, feedforward, self._drives)
-                if done is not None:
-                    self.applied_mv, bits, self._applied_v = done
-                    self._applied_of = self.applied_mv
-                    self._finish_tick(tick, mode, status | bits, volts, amps)
-                    return
-            out = []
-            for j, pid in enumerate(self.pids):
-                out.append(pid.step(setpoint[j], counts[j], feedforward[j]))
-                if pid.saturated:
-                    status |= SATURATED_BITS[j]
+            if self._pid_pwm is not None:  # the C extension: PID, limit stop and PWM
+                done = self._pid_pwm(self.pids, setpoint, counts, feedforward, self._drives)
+            if done is None:
+                out = []
+                for j, pid in enumerate(self.pids):
+                    out.append(pid.step(setpoint[j], counts[j], feedforward[j]))
+                    if pid.saturated:
+                        status |= SATURATED_BITS[j]
         elif mode == VOLTAGE:
             out = [
                 max(-s, min(s, v)) for v, s in zip(self.voltage_cmd_mv, self.supply_mv, strict=True)
             ]
         else:
             out = [0] * self.n
-        applied = []
-        for j, (lim, levels, supply, table) in enumerate(self._per_joint):
-            mv = out[j]
-            if lim is not None and (
-                (mv > 0 and counts[j] >= lim[1]) or (mv < 0 and counts[j] <= lim[0])
-            ):
-                mv = 0
-                status |= LIMIT_BITS[j]
-            if -supply <= mv <= supply:
-                applied.append(table[mv + supply])
-            else:
-                applied.append(pwm_mv(mv, levels, supply))
-        self.applied_mv = applied
-        self._finish_tick(tick, mode, status, volts, amps)
-
-    def _finish_tick(self, tick: int, mode: int, status: int, volts, amps) -> None:
-        """The tick's end: the status bits [and TELEMETRY (voltage [V], current [A])]."""
+        if done is None:
+            applied = []
+            for j, (lim, levels, supply, table) in enumerate(self._per_joint):
+                mv = out[j]
+                if lim is not None and (
+                    (mv > 0 and counts[j] >= lim[1]) or (mv < 0 and counts[j] <= lim[0])
+                ):
+                    mv = 0
+                    status |= LIMIT_BITS[j]
+                if -supply <= mv <= supply:
+                    applied.append(table[mv + supply])
+                else:
+                    applied.append(pwm_mv(mv, levels, supply))
+            self.applied_mv = applied
+        else:
+            self.applied_mv, bits, self._applied_v = done
+            self._applied_of = self.applied_mv
+            status |= bits
         if self.watchdog_tripped:
             status |= WATCHDOG_BIT
         if self.estop:
@@ -448,23 +441,24 @@ class FirmwareEmulator:
             # TELEMETRY(tick, status, mode, counts, voltage [mV], current [mA], setpoint),
             # packed from its flattened values (the bytes encode() gives for the message);
             # voltage [V] and current [A] to milli-units (rounded half up), clamped to int16
-            # (the packer refuses a value out of range without numbering a frame)
-            frame, counts, setpoint = self._telemetry_frame, self.counts, self.setpoint
-            fast = self._telemetry_c
-            if fast is not None:  # the C extension: rounding, clamping and packing in one
+            # (the packer refuses a value out of range without numbering a frame); by the C
+            # extension (rounding, clamping, packing in one call) when it takes the values
+            frame, setpoint = None, self.setpoint
+            if self._telemetry_c is not None:
                 encoder = self.encoder
-                out = fast(self._telemetry_cfg, encoder.seq, tick, status, mode, counts,
-                           volts, amps, setpoint)  # fmt: skip
-                if out is not None:
+                frame = self._telemetry_c(self._telemetry_cfg, encoder.seq, tick, status, mode,
+                                          counts, volts, amps, setpoint)  # fmt: skip
+                if frame is not None:
                     encoder.seq = (encoder.seq + 1) & 0xFFFF
-                    self._out += out
-                    return
-            milli = [floor(x * 1000.0 + 0.5) for x in (*volts, *amps)]
-            try:
-                self._out += frame(tick, status, mode, *counts, *milli, *setpoint)
-            except ValueError:
-                milli = [-32768 if m < -32768 else 32767 if m > 32767 else m for m in milli]
-                self._out += frame(tick, status, mode, *counts, *milli, *setpoint)
+            if frame is None:
+                pack = self._telemetry_frame
+                milli = [floor(x * 1000.0 + 0.5) for x in (*volts, *amps)]
+                try:
+                    frame = pack(tick, status, mode, *counts, *milli, *setpoint)
+                except ValueError:
+                    milli = [-32768 if m < -32768 else 32767 if m > 32767 else m for m in milli]
+                    frame = pack(tick, status, mode, *counts, *milli, *setpoint)
+            self._out += frame
 
     def _sample_fields(self, volts) -> tuple:
         """(counts, voltage [V], current [A]) of ``plant.step(volts)``, for a plant without
