@@ -218,8 +218,10 @@ class FirmwareEmulator:
     def receive(self, data: bytes) -> None:
         """Handle every whole valid frame in ``data`` (partial frames wait for more)."""
         handlers = self._by_id
-        for frame in self.parser.feed(data):  # a Frame is the (msg_id, seq, message) key
+        frames = self.parser.feed(data)
+        if frames:  # no handler changes the tick
             self.last_host_tick = self.tick
+        for frame in frames:  # a Frame is the (msg_id, seq, message) key
             if self._last_reply is not None and frame == self._last_frame:
                 self._send(self._last_reply)  # a retry: answer again, change nothing
                 continue
@@ -381,12 +383,13 @@ class FirmwareEmulator:
         self.counts = counts
         status = 0
         mode = self.mode
-        silent_ms = ((tick - self.last_host_tick) & TICK_MASK) * self.tick_us // 1000
-        if mode != IDLE and silent_ms >= self.watchdog_ms:
-            self.watchdog_tripped = True
-            self._enter_mode(IDLE)
-            self._send(M["FAULT"](tick, FAULT["watchdog"], 0xFF, silent_ms))
-            mode = IDLE
+        if mode != IDLE:
+            silent_ms = ((tick - self.last_host_tick) & TICK_MASK) * self.tick_us // 1000
+            if silent_ms >= self.watchdog_ms:
+                self.watchdog_tripped = True
+                self._enter_mode(IDLE)
+                self._send(M["FAULT"](tick, FAULT["watchdog"], 0xFF, silent_ms))
+                mode = IDLE
         done = None  # the C tick's (applied [mV], status bits, applied [V])
         if mode == POSITION:
             due = False
