@@ -3,6 +3,8 @@
  * packed, one per chunk parsed, the Python objects made here. Not a second codec: the
  * layouts are gp_flat_pack / gp_flat_unpack's, COBS is gp_cobs_*; only the CRC (the same
  * function) runs from a table, as the host can spare the 1 KiB a microcontroller cannot.
+ * Also the firmware emulator's (guardid/firmware/emulator.py) per-tick arithmetic: pid_pwm,
+ * telemetry, the same integers and bytes as its Python path (tests/test_firmware_fast.py).
  * C99, no allocation but the Python objects returned.
  */
 #define PY_SSIZE_T_CLEAN

@@ -18,7 +18,9 @@ It implements the :class:`guardid.fakeport.device.Device` interface. Per tick ``
 Ticks are a u32 counter compared with serial arithmetic (:func:`tick_diff`), as the README's
 timing rules require. The portable C core (``firmware_proto/core``, in the loop through
 :mod:`guardid.firmware.c_core`) implements the same state machine with the same integer
-arithmetic; tests/test_firmware_c.py holds both to identical bytes.
+arithmetic; tests/test_firmware_c.py holds both to identical bytes. Steps 4 and 5 of a position-mode
+tick run in the host's C extension when it is built (:mod:`guardid.protocol.fastcodec`:
+``pid_pwm``, ``telemetry``; the same integers and bytes, tests/test_firmware_fast.py).
 
 Host frames are handled as they arrive (between ticks). A frame equal to the previous host
 frame (same id, sequence number and payload: the host retrying a command whose ACK was lost)
