@@ -3,10 +3,13 @@
  * packed, one per chunk parsed, the Python objects made here. Not a second codec: the
  * layouts are gp_flat_pack / gp_flat_unpack's, COBS is gp_cobs_*; only the CRC (the same
  * function) runs from a table, as the host can spare the 1 KiB a microcontroller cannot.
+ * Also the firmware emulator's (guardid/firmware/emulator.py) per-tick arithmetic: pid_pwm,
+ * telemetry, the same integers and bytes as its Python path (tests/test_firmware_fast.py).
  * C99, no allocation but the Python objects returned.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#include <math.h>
 
 #include "../guard_proto.h"
 
@@ -304,10 +307,243 @@ static PyObject *py_scan(PyObject *self, PyObject *args)
     return result;
 }
 
+
+/* The firmware emulator's position-mode tick (guardid.firmware.emulator), its integers as
+   guardid.firmware.pid.FixedPid.step and emulator.pwm_mv compute them. */
+static PyObject *s_limit_mv, *s_kp, *s_ki, *s_kd, *s_integral, *s_prev_error, *s_saturated;
+
+#define PID_BOUND (1LL << 30) /* gains, positions, errors: the products stay in int64 */
+#define MV_BOUND (1LL << 20)  /* limit and feedforward [mV] */
+
+/* *out = the int attribute name of obj within +-bound; 0 when not (or on an error). */
+static int int_attr(PyObject *obj, PyObject *name, long long bound, int64_t *out)
+{
+    int overflow = 0, is_int;
+    long long x;
+    PyObject *value = PyObject_GetAttr(obj, name);
+    if (value == NULL) {
+        PyErr_Clear();
+        return 0;
+    }
+    is_int = PyLong_Check(value);
+    x = is_int ? PyLong_AsLongLongAndOverflow(value, &overflow) : 0;
+    Py_DECREF(value);
+    if (!is_int || overflow || (x == -1 && PyErr_Occurred()) || x > bound || x < -bound) {
+        PyErr_Clear();
+        return 0;
+    }
+    *out = (int64_t)x;
+    return 1;
+}
+
+/* v[j] = int item j of the list items within +-bound; 0 when not. */
+static int int_items(PyObject *items, Py_ssize_t n, long long bound, int64_t *v)
+{
+    Py_ssize_t j;
+    if (!PyList_Check(items) || PyList_GET_SIZE(items) != n)
+        return 0;
+    for (j = 0; j < n; ++j) {
+        int overflow = 0;
+        PyObject *o = PyList_GET_ITEM(items, j);
+        long long x = PyLong_Check(o) ? PyLong_AsLongLongAndOverflow(o, &overflow) : 0;
+        if (!PyLong_Check(o) || overflow || (x == -1 && PyErr_Occurred()) || x > bound ||
+            x < -bound) {
+            PyErr_Clear();
+            return 0;
+        }
+        v[j] = (int64_t)x;
+    }
+    return 1;
+}
+
+#define MAX_TICK_JOINTS 8
+#define DRIVE_VALS 7 /* per joint: has limits, low, high [counts], levels, supply [mV], bits */
+
+/* pid_pwm(pids, setpoint, counts, feedforward, drives) -> (applied [mV] list, status, the
+   same in V: mv * 1e-3) | None:
+   one position-mode tick: each joint's PID step (FixedPid.step: its state updated), then
+   the stop at a position limit and the PWM quantisation. drives: per joint the int64s has
+   limits, low, high, PWM levels, supply [mV], saturated bit, limit bit. None (nothing
+   changed) when a value is not an int of the range this int64 arithmetic is exact for. */
+static PyObject *py_pid_pwm(PyObject *self, PyObject *args)
+{
+    PyObject *pids, *setpoint, *counts, *feedforward, *applied, *volts, *result;
+    const char *drives_bytes;
+    Py_ssize_t drives_len, n, j;
+    int64_t drive[MAX_TICK_JOINTS * DRIVE_VALS], sp[MAX_TICK_JOINTS], pos[MAX_TICK_JOINTS];
+    int64_t ff[MAX_TICK_JOINTS], integral[MAX_TICK_JOINTS], error[MAX_TICK_JOINTS];
+    int64_t out[MAX_TICK_JOINTS];
+    int saturated[MAX_TICK_JOINTS];
+    int64_t status = 0;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "O!OOOy#", &PyList_Type, &pids, &setpoint, &counts,
+                          &feedforward, &drives_bytes, &drives_len))
+        return NULL;
+    n = PyList_GET_SIZE(pids);
+    if (n < 1 || n > MAX_TICK_JOINTS || drives_len != (Py_ssize_t)(8 * DRIVE_VALS) * n)
+        Py_RETURN_NONE;
+    memcpy(drive, drives_bytes, (size_t)drives_len);
+    if (!int_items(setpoint, n, PID_BOUND / 2, sp) || !int_items(counts, n, PID_BOUND / 2, pos) ||
+        !int_items(feedforward, n, MV_BOUND, ff))
+        Py_RETURN_NONE;
+    for (j = 0; j < n; ++j) {
+        PyObject *pid = PyList_GET_ITEM(pids, j);
+        const int64_t *d = drive + DRIVE_VALS * j;
+        int64_t limit, kp, ki, kd, prev, lim_q, raw, mv, duty;
+        if (!int_attr(pid, s_limit_mv, MV_BOUND, &limit) || !int_attr(pid, s_kp, PID_BOUND, &kp) ||
+            !int_attr(pid, s_ki, PID_BOUND, &ki) || !int_attr(pid, s_kd, PID_BOUND, &kd) ||
+            !int_attr(pid, s_integral, 1LL << 40, &integral[j]) ||
+            !int_attr(pid, s_prev_error, PID_BOUND, &prev) || d[3] < 1 || d[4] < 1)
+            Py_RETURN_NONE;
+        error[j] = sp[j] - pos[j];
+        lim_q = limit * 65536;
+        integral[j] += ki * error[j];
+        if (integral[j] > lim_q)
+            integral[j] = lim_q;
+        else if (integral[j] < -lim_q)
+            integral[j] = -lim_q;
+        raw = kp * error[j] + integral[j] + kd * (error[j] - prev) + ff[j] * 65536;
+        mv = raw >= 0 ? raw >> 16 : -((-raw) >> 16);
+        saturated[j] = mv > limit || mv < -limit;
+        if (saturated[j]) {
+            status |= d[5];
+            mv = mv > 0 ? limit : -limit;
+            if ((error[j] > 0) == (mv > 0))
+                integral[j] = INT64_MIN; /* the integral stays as it was */
+        }
+        if (d[0] && ((mv > 0 && pos[j] >= d[2]) || (mv < 0 && pos[j] <= d[1]))) {
+            mv = 0;
+            status |= d[6];
+        }
+        duty = ((mv < 0 ? -mv : mv) * d[3] + d[4] / 2) / d[4];
+        duty = (duty * d[4] + d[3] / 2) / d[3];
+        out[j] = mv >= 0 ? duty : -duty;
+    }
+    applied = PyList_New(n);
+    volts = PyList_New(n);
+    if (applied == NULL || volts == NULL) {
+        Py_XDECREF(applied);
+        Py_XDECREF(volts);
+        return NULL;
+    }
+    for (j = 0; j < n; ++j) {
+        PyObject *o = PyLong_FromLongLong(out[j]);
+        PyObject *v = PyFloat_FromDouble((double)out[j] * 1e-3); /* Python's mv * 1e-3 */
+        if (o == NULL || v == NULL) {
+            Py_XDECREF(o);
+            Py_XDECREF(v);
+            Py_DECREF(applied);
+            Py_DECREF(volts);
+            return NULL;
+        }
+        PyList_SET_ITEM(applied, j, o);
+        PyList_SET_ITEM(volts, j, v);
+    }
+    for (j = 0; j < n; ++j) { /* the state, once every joint's step is known */
+        PyObject *pid = PyList_GET_ITEM(pids, j);
+        PyObject *e = PyLong_FromLongLong(error[j]);
+        PyObject *i = integral[j] == INT64_MIN ? NULL : PyLong_FromLongLong(integral[j]);
+        int bad = e == NULL || (integral[j] != INT64_MIN && i == NULL) ||
+                  PyObject_SetAttr(pid, s_saturated, saturated[j] ? Py_True : Py_False) ||
+                  PyObject_SetAttr(pid, s_prev_error, e) ||
+                  (i != NULL && PyObject_SetAttr(pid, s_integral, i));
+        Py_XDECREF(e);
+        Py_XDECREF(i);
+        if (bad) {
+            Py_DECREF(applied);
+            Py_DECREF(volts);
+            return NULL;
+        }
+    }
+    result = Py_BuildValue("(NLN)", applied, (long long)status, volts);
+    return result;
+}
+
+
+/* v[k0 + j] = the int item j of the list items in its field's range of cfg; 0 when not. */
+static int read_list(const int64_t *cfg, Py_ssize_t k0, PyObject *items, Py_ssize_t n, int64_t *v)
+{
+    Py_ssize_t j, n_vals = (Py_ssize_t)cfg[2];
+    if (!PyList_Check(items) || PyList_GET_SIZE(items) != n || k0 + n > n_vals)
+        return 0;
+    for (j = 0; j < n; ++j) {
+        int overflow = 0;
+        PyObject *o = PyList_GET_ITEM(items, j);
+        long long x = PyLong_Check(o) ? PyLong_AsLongLongAndOverflow(o, &overflow) : 0;
+        if (!PyLong_Check(o) || overflow || (x == -1 && PyErr_Occurred()) ||
+            x < cfg[3 + k0 + j] || x > cfg[3 + n_vals + k0 + j]) {
+            PyErr_Clear();
+            return 0;
+        }
+        v[k0 + j] = (int64_t)x;
+    }
+    return 1;
+}
+
+/* v[k0 + j] = the float item j of the list items [units] in milli-units, rounded half up
+   (Python's floor(x * 1000.0 + 0.5)) and clamped to int16; 0 when one is not a finite
+   float. */
+static int read_milli(PyObject *items, Py_ssize_t n, Py_ssize_t k0, int64_t *v)
+{
+    Py_ssize_t j;
+    if (!PyList_Check(items) || PyList_GET_SIZE(items) != n)
+        return 0;
+    for (j = 0; j < n; ++j) {
+        PyObject *o = PyList_GET_ITEM(items, j);
+        double x, m;
+        if (!PyFloat_Check(o))
+            return 0;
+        x = PyFloat_AS_DOUBLE(o);
+        if (!(x - x == 0.0)) /* inf or nan: the Python path says so */
+            return 0;
+        m = floor(x * 1000.0 + 0.5);
+        v[k0 + j] = m < -32768.0 ? -32768 : m > 32767.0 ? 32767 : (int64_t)m;
+    }
+    return 1;
+}
+
+/* telemetry(cfg, seq, tick, status, mode, counts, volts, amps, setpoint) -> bytes | None:
+   the firmware emulator's TELEMETRY frame numbered seq (cfg as encode's) from the encoder
+   counts, the voltages [V] and currents [A] (floats, to mV and mA as the emulator rounds
+   and clamps them) and the setpoint (lists of n); None when a value is not of its kind or
+   out of its field's range (the emulator's Python path then). */
+static PyObject *py_telemetry(PyObject *self, PyObject *args)
+{
+    const char *cfg_bytes;
+    Py_ssize_t cfg_len, n;
+    unsigned int seq;
+    long long tick, status, mode;
+    PyObject *counts, *volts, *amps, *setpoint;
+    int64_t cfg[3 + 2 * MAX_VALS], v[MAX_VALS];
+    uint8_t out[GP_MAX_WIRE];
+    size_t len;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "y#ILLLOOOO", &cfg_bytes, &cfg_len, &seq, &tick, &status,
+                          &mode, &counts, &volts, &amps, &setpoint))
+        return NULL;
+    if (!read_cfg(cfg_bytes, cfg_len, cfg) || !PyList_Check(counts))
+        Py_RETURN_NONE;
+    n = PyList_GET_SIZE(counts);
+    v[0] = tick;
+    v[1] = status;
+    v[2] = mode;
+    if (3 + 4 * n != (Py_ssize_t)cfg[2] || v[0] < cfg[3] || v[0] > cfg[3 + cfg[2]] ||
+        v[1] < cfg[4] || v[1] > cfg[4 + cfg[2]] || v[2] < cfg[5] || v[2] > cfg[5 + cfg[2]] ||
+        !read_list(cfg, 3, counts, n, v) || !read_milli(volts, n, 3 + n, v) ||
+        !read_milli(amps, n, 3 + 2 * n, v) || !read_list(cfg, 3 + 3 * n, setpoint, n, v))
+        Py_RETURN_NONE;
+    len = frame_of(cfg, v, seq, out);
+    if (len == 0)
+        Py_RETURN_NONE;
+    return PyBytes_FromStringAndSize((const char *)out, (Py_ssize_t)len);
+}
+
 static PyMethodDef methods[] = {
     {"encode", py_encode, METH_VARARGS, "One wire frame from flattened values, or None."},
     {"encode_rows", py_encode_rows, METH_VARARGS, "Streamed setpoint frames from rows."},
     {"scan", py_scan, METH_VARARGS, "The leading valid frames of one kind in a chunk."},
+    {"pid_pwm", py_pid_pwm, METH_VARARGS, "The firmware emulator's position-mode tick."},
+    {"telemetry", py_telemetry, METH_VARARGS, "The firmware emulator's TELEMETRY frame."},
     {NULL, NULL, 0, NULL},
 };
 
@@ -319,5 +555,14 @@ static struct PyModuleDef module = {
 PyMODINIT_FUNC PyInit_gp_pyext(void)
 {
     crc_init();
+    s_limit_mv = PyUnicode_InternFromString("limit_mv");
+    s_kp = PyUnicode_InternFromString("kp");
+    s_ki = PyUnicode_InternFromString("ki");
+    s_kd = PyUnicode_InternFromString("kd");
+    s_integral = PyUnicode_InternFromString("integral");
+    s_prev_error = PyUnicode_InternFromString("prev_error");
+    s_saturated = PyUnicode_InternFromString("saturated");
+    if (!s_limit_mv || !s_kp || !s_ki || !s_kd || !s_integral || !s_prev_error || !s_saturated)
+        return NULL;
     return PyModule_Create(&module);
 }

@@ -18,7 +18,9 @@ It implements the :class:`guardid.fakeport.device.Device` interface. Per tick ``
 Ticks are a u32 counter compared with serial arithmetic (:func:`tick_diff`), as the README's
 timing rules require. The portable C core (``firmware_proto/core``, in the loop through
 :mod:`guardid.firmware.c_core`) implements the same state machine with the same integer
-arithmetic; tests/test_firmware_c.py holds both to identical bytes.
+arithmetic; tests/test_firmware_c.py holds both to identical bytes. Steps 4 and 5 of a position-mode
+tick run in the host's C extension when it is built (:mod:`guardid.protocol.fastcodec`:
+``pid_pwm``, ``telemetry``; the same integers and bytes, tests/test_firmware_fast.py).
 
 Host frames are handled as they arrive (between ticks). A frame equal to the previous host
 frame (same id, sequence number and payload: the host retrying a command whose ACK was lost)
@@ -31,14 +33,17 @@ sequence gap.
 from __future__ import annotations
 
 import math
+import struct
 from collections import deque
 from functools import cache
 from math import floor
 
 from guardid.errors import ConfigError
 from guardid.firmware.pid import FixedPid, counts_per_joint_rev, mv_from_volts, pid_gains_q16
-from guardid.protocol import ENUMS, PROTOCOL_VERSION, Encoder, FrameParser
+from guardid.protocol import ENUMS, PROTOCOL_VERSION, Encoder, FrameParser, fastcodec
 from guardid.protocol import MESSAGES as M
+from guardid.protocol.codec import MAX_JOINTS
+from guardid.protocol.codec import _fast_config as fast_config
 
 MODE = ENUMS["mode"]
 ERR = ENUMS["error"]
@@ -161,6 +166,21 @@ class FirmwareEmulator:
         self.encoder = Encoder()
         self._telemetry_frame = self.encoder.packer(TELEMETRY, self.n)  # per-tick fast path
         self._read_plant = getattr(plant, "step_sensors", None) or self._sample_fields
+        # the position-mode tick in C (fastcodec's extension; None: the Python path), its
+        # drive facts per joint as int64s: has limits, limits [counts], levels, supply [mV],
+        # saturated and limit status bits
+        fast = fastcodec.module()
+        bounds = [lim or (0, 0) for lim, *_ in self._per_joint]
+        fits = self.n <= MAX_JOINTS and all(abs(b) < 2**62 for pair in bounds for b in pair)
+        self._pid_pwm = fast.pid_pwm if fast is not None and fits else None
+        self._telemetry_c = fast.telemetry if fast is not None and fits else None
+        self._telemetry_cfg = fast_config(TELEMETRY.SPEC, self.n) if fits else b""
+        self._drives = b"".join(
+            struct.pack("=7q", lim is not None, *b, levels, supply, sat, stop)
+            for (lim, levels, supply, _), b, sat, stop in zip(
+                self._per_joint, bounds, SATURATED_BITS, LIMIT_BITS, strict=False
+            )
+        )  # (fits: n <= MAX_JOINTS, the number of status bits of each kind)
         self._last_frame = None  # (msg_id, seq, message) of the previous host frame
         self._last_reply = None  # its ACK/NAK, resent if the same frame comes again
         # _HANDLERS (a subclass may replace some) by message id, a parsed frame's first field
@@ -168,6 +188,7 @@ class FirmwareEmulator:
             c.MSG_ID: self._HANDLERS[c.__name__] for c in M.values() if c.__name__ in self._HANDLERS
         }
         self._out = bytearray()
+        self._applied_of = self._applied_v = None  # the C tick's applied_mv and it in V
         self.tick = 0
         self.mode = MODE["idle"]
         self.streaming = False
@@ -182,7 +203,9 @@ class FirmwareEmulator:
         self.feedforward_mv = self._no_feedforward  # added to the PID output (SETPOINT_FF)
         self.setpoint_hold = True  # no underrun before the first streamed setpoint
         self.voltage_cmd_mv = [0] * self.n
-        self.applied_mv = [0] * self.n  # after limits and PWM, held over the next period
+        # after limits and PWM, held over the next period (replaced, not changed in place,
+        # once the C tick ran: _applied_v holds it in V)
+        self.applied_mv = [0] * self.n
         self.counts = [0] * self.n
         self.status = 0
 
@@ -197,8 +220,10 @@ class FirmwareEmulator:
     def receive(self, data: bytes) -> None:
         """Handle every whole valid frame in ``data`` (partial frames wait for more)."""
         handlers = self._by_id
-        for frame in self.parser.feed(data):  # a Frame is the (msg_id, seq, message) key
+        frames = self.parser.feed(data)
+        if frames:  # no handler changes the tick
             self.last_host_tick = self.tick
+        for frame in frames:  # a Frame is the (msg_id, seq, message) key
             if self._last_reply is not None and frame == self._last_frame:
                 self._send(self._last_reply)  # a retry: answer again, change nothing
                 continue
@@ -268,18 +293,14 @@ class FirmwareEmulator:
         self.pids[msg.joint].set_gains(gains)
         self._ack(frame)
 
-    def _on_setpoint(self, frame) -> None:
-        tick, flags, position = frame.msg
-        self._queue_setpoint(frame, tick, flags, position)
-
     def _on_setpoint_ff(self, frame) -> None:
-        tick, flags, position, feedforward = frame.msg
-        self._queue_setpoint(frame, tick, flags, position, list(feedforward))
+        self._on_setpoint(frame, list(frame.msg[3]))
 
-    def _queue_setpoint(self, frame, tick, flags, position, feedforward_mv=None) -> None:
+    def _on_setpoint(self, frame, feedforward_mv=None) -> None:
         """Queue (tick, position, hold) for SETPOINT, (tick, position, hold, feedforward [mV])
         for SETPOINT_FF (a 3-tuple entry means no feedforward), or NAK."""
-        buffer = self.buffer
+        msg, buffer = frame.msg, self.buffer
+        tick, flags, position = msg[0], msg[1], msg[2]
         if len(position) != self.n:
             return self._nak(frame, "bad_joint")
         if self.estop:
@@ -357,17 +378,21 @@ class FirmwareEmulator:
     # ------------------------------------------------------------------ the 15 ms tick
     def advance(self) -> None:
         """One sample period of the plant, then the firmware's tick (module docstring)."""
-        counts, volts, amps = self._read_plant([mv * 1e-3 for mv in self.applied_mv])
+        applied = self.applied_mv  # [V] from the C tick when it made that list
+        u = self._applied_v if applied is self._applied_of else [mv * 1e-3 for mv in applied]
+        counts, volts, amps = self._read_plant(u)
         self.tick = tick = (self.tick + 1) & TICK_MASK
         self.counts = counts
         status = 0
         mode = self.mode
-        silent_ms = ((tick - self.last_host_tick) & TICK_MASK) * self.tick_us // 1000
-        if mode != IDLE and silent_ms >= self.watchdog_ms:
-            self.watchdog_tripped = True
-            self._enter_mode(IDLE)
-            self._send(M["FAULT"](tick, FAULT["watchdog"], 0xFF, silent_ms))
-            mode = IDLE
+        if mode != IDLE:
+            silent_ms = ((tick - self.last_host_tick) & TICK_MASK) * self.tick_us // 1000
+            if silent_ms >= self.watchdog_ms:
+                self.watchdog_tripped = True
+                self._enter_mode(IDLE)
+                self._send(M["FAULT"](tick, FAULT["watchdog"], 0xFF, silent_ms))
+                mode = IDLE
+        done = None  # the C tick's (applied [mV], status bits, applied [V])
         if mode == POSITION:
             due = False
             buffer = self.buffer
@@ -379,31 +404,39 @@ class FirmwareEmulator:
                 due = True
             if not due and not self.setpoint_hold:
                 status |= UNDERRUN_BIT
-            out = []
             setpoint, feedforward = self.setpoint, self.feedforward_mv
-            for j, pid in enumerate(self.pids):
-                out.append(pid.step(setpoint[j], counts[j], feedforward[j]))
-                if pid.saturated:
-                    status |= SATURATED_BITS[j]
+            if self._pid_pwm is not None:  # the C extension: PID, limit stop and PWM
+                done = self._pid_pwm(self.pids, setpoint, counts, feedforward, self._drives)
+            if done is None:
+                out = []
+                for j, pid in enumerate(self.pids):
+                    out.append(pid.step(setpoint[j], counts[j], feedforward[j]))
+                    if pid.saturated:
+                        status |= SATURATED_BITS[j]
         elif mode == VOLTAGE:
             out = [
                 max(-s, min(s, v)) for v, s in zip(self.voltage_cmd_mv, self.supply_mv, strict=True)
             ]
         else:
             out = [0] * self.n
-        applied = []
-        for j, (lim, levels, supply, table) in enumerate(self._per_joint):
-            mv = out[j]
-            if lim is not None and (
-                (mv > 0 and counts[j] >= lim[1]) or (mv < 0 and counts[j] <= lim[0])
-            ):
-                mv = 0
-                status |= LIMIT_BITS[j]
-            if -supply <= mv <= supply:
-                applied.append(table[mv + supply])
-            else:
-                applied.append(pwm_mv(mv, levels, supply))
-        self.applied_mv = applied
+        if done is None:
+            applied = []
+            for j, (lim, levels, supply, table) in enumerate(self._per_joint):
+                mv = out[j]
+                if lim is not None and (
+                    (mv > 0 and counts[j] >= lim[1]) or (mv < 0 and counts[j] <= lim[0])
+                ):
+                    mv = 0
+                    status |= LIMIT_BITS[j]
+                if -supply <= mv <= supply:
+                    applied.append(table[mv + supply])
+                else:
+                    applied.append(pwm_mv(mv, levels, supply))
+            self.applied_mv = applied
+        else:
+            self.applied_mv, bits, self._applied_v = done
+            self._applied_of = self.applied_mv
+            status |= bits
         if self.watchdog_tripped:
             status |= WATCHDOG_BIT
         if self.estop:
@@ -413,14 +446,24 @@ class FirmwareEmulator:
             # TELEMETRY(tick, status, mode, counts, voltage [mV], current [mA], setpoint),
             # packed from its flattened values (the bytes encode() gives for the message);
             # voltage [V] and current [A] to milli-units (rounded half up), clamped to int16
-            # (the packer refuses a value out of range without numbering a frame)
-            frame, setpoint = self._telemetry_frame, self.setpoint
-            milli = [floor(x * 1000.0 + 0.5) for x in (*volts, *amps)]
-            try:
-                self._out += frame(tick, status, mode, *counts, *milli, *setpoint)
-            except ValueError:
-                milli = [-32768 if m < -32768 else 32767 if m > 32767 else m for m in milli]
-                self._out += frame(tick, status, mode, *counts, *milli, *setpoint)
+            # (the packer refuses a value out of range without numbering a frame); by the C
+            # extension (rounding, clamping, packing in one call) when it takes the values
+            frame, setpoint = None, self.setpoint
+            if self._telemetry_c is not None:
+                encoder = self.encoder
+                frame = self._telemetry_c(self._telemetry_cfg, encoder.seq, tick, status, mode,
+                                          counts, volts, amps, setpoint)  # fmt: skip
+                if frame is not None:
+                    encoder.seq = (encoder.seq + 1) & 0xFFFF
+            if frame is None:
+                pack = self._telemetry_frame
+                milli = [floor(x * 1000.0 + 0.5) for x in (*volts, *amps)]
+                try:
+                    frame = pack(tick, status, mode, *counts, *milli, *setpoint)
+                except ValueError:
+                    milli = [-32768 if m < -32768 else 32767 if m > 32767 else m for m in milli]
+                    frame = pack(tick, status, mode, *counts, *milli, *setpoint)
+            self._out += frame
 
     def _sample_fields(self, volts) -> tuple:
         """(counts, voltage [V], current [A]) of ``plant.step(volts)``, for a plant without

@@ -3,14 +3,15 @@
 ``firmware_proto/host/gp_pyext.c`` (on ``guard_proto.c`` and the generated
 ``guard_proto_msgs.h``) packs one frame per call and takes the leading valid frames of one
 kind out of a chunk, making the Python objects itself: the per-frame COBS, CRC and struct
-calls of the Python path in one call. Built once into the cache by
-:func:`guardid.native.cached_library`. :func:`module` is None without a C compiler, without
-Python's headers, without the sources (an install without ``firmware_proto/``), when it
-does not compile, cannot be written to the cache or does not load (a warning says why),
-with ``GUARDID_NATIVE=0`` or on a Python from :data:`MAX_PYTHON` on: then
-:class:`guardid.protocol.FrameParser` and :meth:`guardid.protocol.Encoder.packer` take
-their Python path, which gives the same bytes, frames and counters
-(tests/test_protocol_fast.py).
+calls of the Python path in one call; it also runs the firmware emulator's position-mode
+tick and TELEMETRY frame (``pid_pwm``, ``telemetry``: guardid.firmware.emulator). Built
+once into the cache by :func:`guardid.native.cached_library`. :func:`module` is None
+without a C compiler, without Python's headers, without the sources (an install without
+``firmware_proto/``), when it does not compile, cannot be written to the cache or does not
+load (a warning says why), with ``GUARDID_NATIVE=0`` or on a Python from
+:data:`MAX_PYTHON` on: then :class:`guardid.protocol.FrameParser` and
+:meth:`guardid.protocol.Encoder.packer` take their Python path, which gives the same bytes,
+frames and counters (tests/test_protocol_fast.py).
 """
 
 from __future__ import annotations
