@@ -315,12 +315,35 @@ static PyObject *s_limit_mv, *s_kp, *s_ki, *s_kd, *s_integral, *s_prev_error, *s
 #define PID_BOUND (1LL << 30) /* gains, positions, errors: the products stay in int64 */
 #define MV_BOUND (1LL << 20)  /* limit and feedforward [mV] */
 
-/* *out = the int attribute name of obj within +-bound; 0 when not (or on an error). */
+/* The attribute name of obj, a new reference; NULL with an error set when it has none. obj
+   may be an instance's __dict__ (the attributes the emulator and its PIDs set in their
+   __init__, never class attributes: guardid.firmware.emulator checks): a dict lookup. */
+static PyObject *get_attr(PyObject *obj, PyObject *name)
+{
+    PyObject *value;
+    if (!PyDict_CheckExact(obj))
+        return PyObject_GetAttr(obj, name);
+    value = PyDict_GetItemWithError(obj, name);
+    if (value == NULL && !PyErr_Occurred())
+        PyErr_SetObject(PyExc_AttributeError, name);
+    Py_XINCREF(value);
+    return value;
+}
+
+/* obj.name = value (obj an object or its __dict__, as get_attr); -1 on an error. */
+static int set_attr(PyObject *obj, PyObject *name, PyObject *value)
+{
+    return PyDict_CheckExact(obj) ? PyDict_SetItem(obj, name, value)
+                                  : PyObject_SetAttr(obj, name, value);
+}
+
+/* *out = the int attribute name of obj (get_attr) within +-bound; 0 when not (or on an
+   error). */
 static int int_attr(PyObject *obj, PyObject *name, long long bound, int64_t *out)
 {
     int overflow = 0, is_int;
     long long x;
-    PyObject *value = PyObject_GetAttr(obj, name);
+    PyObject *value = get_attr(obj, name);
     if (value == NULL) {
         PyErr_Clear();
         return 0;
@@ -359,6 +382,117 @@ static int int_items(PyObject *items, Py_ssize_t n, long long bound, int64_t *v)
 #define MAX_TICK_JOINTS 8
 #define DRIVE_VALS 7 /* per joint: has limits, low, high [counts], levels, supply [mV], bits */
 
+/* The __dict__ of the PID pids[j] (a new reference; NULL, no error left, without one). */
+static PyObject *pid_dict(PyObject *pids, Py_ssize_t j)
+{
+    PyObject *d = PyObject_GenericGetDict(PyList_GET_ITEM(pids, j), NULL);
+    if (d != NULL && !PyDict_CheckExact(d))
+        Py_CLEAR(d);
+    PyErr_Clear();
+    return d;
+}
+
+/* One position-mode tick of n joints (FixedPid.step's arithmetic, then the stop at a position
+   limit and the PWM quantisation): from the setpoints sp, positions pos [counts] and
+   feedforward ff [mV], the PIDs' gains and state (their int attributes) and the drives
+   (per joint: has limits, low, high, PWM levels, supply [mV], saturated bit, limit bit),
+   the applied voltages out [mV], the status bits and each PID's new state (error, integral:
+   INT64_MIN where it stays, saturated). 0 (nothing read is changed) when a PID's value is
+   not an int of the range this int64 arithmetic is exact for. */
+static int pid_tick(PyObject *pids, Py_ssize_t n, const int64_t *sp, const int64_t *pos,
+                    const int64_t *ff, const int64_t *drive, int64_t *out, int64_t *error,
+                    int64_t *integral, int *saturated, int64_t *status)
+{
+    Py_ssize_t j;
+    for (j = 0; j < n; ++j) {
+        PyObject *pid = pid_dict(pids, j);
+        const int64_t *d = drive + DRIVE_VALS * j;
+        int64_t limit, kp, ki, kd, prev, lim_q, raw, mv, duty;
+        int ok = pid != NULL && int_attr(pid, s_limit_mv, MV_BOUND, &limit) &&
+                 int_attr(pid, s_kp, PID_BOUND, &kp) && int_attr(pid, s_ki, PID_BOUND, &ki) &&
+                 int_attr(pid, s_kd, PID_BOUND, &kd) &&
+                 int_attr(pid, s_integral, 1LL << 40, &integral[j]) &&
+                 int_attr(pid, s_prev_error, PID_BOUND, &prev) && d[3] >= 1 && d[4] >= 1;
+        Py_XDECREF(pid);
+        if (!ok)
+            return 0;
+        error[j] = sp[j] - pos[j];
+        lim_q = limit * 65536;
+        integral[j] += ki * error[j];
+        if (integral[j] > lim_q)
+            integral[j] = lim_q;
+        else if (integral[j] < -lim_q)
+            integral[j] = -lim_q;
+        raw = kp * error[j] + integral[j] + kd * (error[j] - prev) + ff[j] * 65536;
+        mv = raw >= 0 ? raw >> 16 : -((-raw) >> 16);
+        saturated[j] = mv > limit || mv < -limit;
+        if (saturated[j]) {
+            *status |= d[5];
+            mv = mv > 0 ? limit : -limit;
+            if ((error[j] > 0) == (mv > 0))
+                integral[j] = INT64_MIN; /* the integral stays as it was */
+        }
+        if (d[0] && ((mv > 0 && pos[j] >= d[2]) || (mv < 0 && pos[j] <= d[1]))) {
+            mv = 0;
+            *status |= d[6];
+        }
+        duty = ((mv < 0 ? -mv : mv) * d[3] + d[4] / 2) / d[4];
+        duty = (duty * d[4] + d[3] / 2) / d[3];
+        out[j] = mv >= 0 ? duty : -duty;
+    }
+    return 1;
+}
+
+/* *applied, *volts = new lists of out [mV] and of the same in V (Python's mv * 1e-3); 0 on
+   a Python error (set). */
+static int applied_lists(const int64_t *out, Py_ssize_t n, PyObject **applied, PyObject **volts)
+{
+    Py_ssize_t j;
+    *applied = PyList_New(n);
+    *volts = PyList_New(n);
+    if (*applied == NULL || *volts == NULL)
+        goto fail;
+    for (j = 0; j < n; ++j) {
+        PyObject *o = PyLong_FromLongLong(out[j]);
+        PyObject *v = PyFloat_FromDouble((double)out[j] * 1e-3);
+        if (o == NULL || v == NULL) {
+            Py_XDECREF(o);
+            Py_XDECREF(v);
+            goto fail;
+        }
+        PyList_SET_ITEM(*applied, j, o);
+        PyList_SET_ITEM(*volts, j, v);
+    }
+    return 1;
+fail:
+    Py_CLEAR(*applied);
+    Py_CLEAR(*volts);
+    return 0;
+}
+
+/* The PIDs' new state from pid_tick; 0 on a Python error (set). */
+static int set_pid_state(PyObject *pids, Py_ssize_t n, const int64_t *error,
+                         const int64_t *integral, const int *saturated)
+{
+    Py_ssize_t j;
+    for (j = 0; j < n; ++j) {
+        PyObject *pid = pid_dict(pids, j);
+        PyObject *e = PyLong_FromLongLong(error[j]);
+        PyObject *i = integral[j] == INT64_MIN ? NULL : PyLong_FromLongLong(integral[j]);
+        int bad = pid == NULL || e == NULL || (integral[j] != INT64_MIN && i == NULL) ||
+                  set_attr(pid, s_saturated, saturated[j] ? Py_True : Py_False) ||
+                  set_attr(pid, s_prev_error, e) || (i != NULL && set_attr(pid, s_integral, i));
+        if (pid == NULL) /* pid_tick read it: it had a __dict__ */
+            PyErr_SetString(PyExc_RuntimeError, "a PID lost its __dict__");
+        Py_XDECREF(pid);
+        Py_XDECREF(e);
+        Py_XDECREF(i);
+        if (bad)
+            return 0;
+    }
+    return 1;
+}
+
 /* pid_pwm(pids, setpoint, counts, feedforward, drives) -> (applied [mV] list, status, the
    same in V: mv * 1e-3) | None:
    one position-mode tick: each joint's PID step (FixedPid.step: its state updated), then
@@ -367,9 +501,9 @@ static int int_items(PyObject *items, Py_ssize_t n, long long bound, int64_t *v)
    changed) when a value is not an int of the range this int64 arithmetic is exact for. */
 static PyObject *py_pid_pwm(PyObject *self, PyObject *args)
 {
-    PyObject *pids, *setpoint, *counts, *feedforward, *applied, *volts, *result;
+    PyObject *pids, *setpoint, *counts, *feedforward, *applied, *volts;
     const char *drives_bytes;
-    Py_ssize_t drives_len, n, j;
+    Py_ssize_t drives_len, n;
     int64_t drive[MAX_TICK_JOINTS * DRIVE_VALS], sp[MAX_TICK_JOINTS], pos[MAX_TICK_JOINTS];
     int64_t ff[MAX_TICK_JOINTS], integral[MAX_TICK_JOINTS], error[MAX_TICK_JOINTS];
     int64_t out[MAX_TICK_JOINTS];
@@ -384,81 +518,18 @@ static PyObject *py_pid_pwm(PyObject *self, PyObject *args)
         Py_RETURN_NONE;
     memcpy(drive, drives_bytes, (size_t)drives_len);
     if (!int_items(setpoint, n, PID_BOUND / 2, sp) || !int_items(counts, n, PID_BOUND / 2, pos) ||
-        !int_items(feedforward, n, MV_BOUND, ff))
+        !int_items(feedforward, n, MV_BOUND, ff) ||
+        !pid_tick(pids, n, sp, pos, ff, drive, out, error, integral, saturated, &status))
         Py_RETURN_NONE;
-    for (j = 0; j < n; ++j) {
-        PyObject *pid = PyList_GET_ITEM(pids, j);
-        const int64_t *d = drive + DRIVE_VALS * j;
-        int64_t limit, kp, ki, kd, prev, lim_q, raw, mv, duty;
-        if (!int_attr(pid, s_limit_mv, MV_BOUND, &limit) || !int_attr(pid, s_kp, PID_BOUND, &kp) ||
-            !int_attr(pid, s_ki, PID_BOUND, &ki) || !int_attr(pid, s_kd, PID_BOUND, &kd) ||
-            !int_attr(pid, s_integral, 1LL << 40, &integral[j]) ||
-            !int_attr(pid, s_prev_error, PID_BOUND, &prev) || d[3] < 1 || d[4] < 1)
-            Py_RETURN_NONE;
-        error[j] = sp[j] - pos[j];
-        lim_q = limit * 65536;
-        integral[j] += ki * error[j];
-        if (integral[j] > lim_q)
-            integral[j] = lim_q;
-        else if (integral[j] < -lim_q)
-            integral[j] = -lim_q;
-        raw = kp * error[j] + integral[j] + kd * (error[j] - prev) + ff[j] * 65536;
-        mv = raw >= 0 ? raw >> 16 : -((-raw) >> 16);
-        saturated[j] = mv > limit || mv < -limit;
-        if (saturated[j]) {
-            status |= d[5];
-            mv = mv > 0 ? limit : -limit;
-            if ((error[j] > 0) == (mv > 0))
-                integral[j] = INT64_MIN; /* the integral stays as it was */
-        }
-        if (d[0] && ((mv > 0 && pos[j] >= d[2]) || (mv < 0 && pos[j] <= d[1]))) {
-            mv = 0;
-            status |= d[6];
-        }
-        duty = ((mv < 0 ? -mv : mv) * d[3] + d[4] / 2) / d[4];
-        duty = (duty * d[4] + d[3] / 2) / d[3];
-        out[j] = mv >= 0 ? duty : -duty;
-    }
-    applied = PyList_New(n);
-    volts = PyList_New(n);
-    if (applied == NULL || volts == NULL) {
-        Py_XDECREF(applied);
-        Py_XDECREF(volts);
+    if (!applied_lists(out, n, &applied, &volts))
+        return NULL;
+    if (!set_pid_state(pids, n, error, integral, saturated)) {
+        Py_DECREF(applied);
+        Py_DECREF(volts);
         return NULL;
     }
-    for (j = 0; j < n; ++j) {
-        PyObject *o = PyLong_FromLongLong(out[j]);
-        PyObject *v = PyFloat_FromDouble((double)out[j] * 1e-3); /* Python's mv * 1e-3 */
-        if (o == NULL || v == NULL) {
-            Py_XDECREF(o);
-            Py_XDECREF(v);
-            Py_DECREF(applied);
-            Py_DECREF(volts);
-            return NULL;
-        }
-        PyList_SET_ITEM(applied, j, o);
-        PyList_SET_ITEM(volts, j, v);
-    }
-    for (j = 0; j < n; ++j) { /* the state, once every joint's step is known */
-        PyObject *pid = PyList_GET_ITEM(pids, j);
-        PyObject *e = PyLong_FromLongLong(error[j]);
-        PyObject *i = integral[j] == INT64_MIN ? NULL : PyLong_FromLongLong(integral[j]);
-        int bad = e == NULL || (integral[j] != INT64_MIN && i == NULL) ||
-                  PyObject_SetAttr(pid, s_saturated, saturated[j] ? Py_True : Py_False) ||
-                  PyObject_SetAttr(pid, s_prev_error, e) ||
-                  (i != NULL && PyObject_SetAttr(pid, s_integral, i));
-        Py_XDECREF(e);
-        Py_XDECREF(i);
-        if (bad) {
-            Py_DECREF(applied);
-            Py_DECREF(volts);
-            return NULL;
-        }
-    }
-    result = Py_BuildValue("(NLN)", applied, (long long)status, volts);
-    return result;
+    return Py_BuildValue("(NLN)", applied, (long long)status, volts);
 }
-
 
 /* v[k0 + j] = the int item j of the list items in its field's range of cfg; 0 when not. */
 static int read_list(const int64_t *cfg, Py_ssize_t k0, PyObject *items, Py_ssize_t n, int64_t *v)
@@ -538,12 +609,422 @@ static PyObject *py_telemetry(PyObject *self, PyObject *args)
     return PyBytes_FromStringAndSize((const char *)out, (Py_ssize_t)len);
 }
 
+/* The emulator's attributes the whole tick and the setpoint handler read and write. */
+static PyObject *s_mode, *s_applied_mv, *s_applied_of, *s_applied_v, *s_tick, *s_last_host_tick;
+static PyObject *s_tick_us, *s_watchdog_ms, *s_read_plant, *s_buffer, *s_setpoint;
+static PyObject *s_setpoint_hold, *s_feedforward_mv, *s_no_feedforward, *s_pids, *s_drives;
+static PyObject *s_watchdog_tripped, *s_estop, *s_streaming, *s_decimation, *s_encoder, *s_seq;
+static PyObject *s_telemetry_cfg, *s_out, *s_counts, *s_status, *s_popleft, *s_append;
+static PyObject *s_last_frame, *s_last_reply;
+
+#define TICK_MASK 0xFFFFFFFFLL
+/* tick_diff(a, b) <= 0 for u32 ticks a, b (serial arithmetic, the emulator's inlined test) */
+#define NOT_AFTER(a, b) ((((a) - (b) + 0x80000000LL) & TICK_MASK) <= 0x80000000LL)
+
+/* The truth value of the attribute name of obj in *out; 0 on a Python error (set). */
+static int true_attr(PyObject *obj, PyObject *name, int *out)
+{
+    PyObject *value = get_attr(obj, name);
+    if (value == NULL)
+        return 0;
+    *out = PyObject_IsTrue(value);
+    Py_DECREF(value);
+    return *out >= 0;
+}
+
+/* The attribute name of obj, a new reference, when it is a (subclass of) type; NULL (no
+   error left) when it is not or is missing. */
+static PyObject *typed_attr(PyObject *obj, PyObject *name, PyTypeObject *type)
+{
+    PyObject *value = get_attr(obj, name);
+    if (value == NULL)
+        PyErr_Clear();
+    else if (!PyObject_TypeCheck(value, type))
+        Py_CLEAR(value);
+    return value;
+}
+
+/* The whole position-mode tick of the emulator emu, up to the plant's read when it falls
+   to the Python path; see py_fw_tick. The locals it reads, then writes. */
+struct fw_tick {
+    Py_ssize_t n, due;
+    int64_t tick, status, seq;
+    int64_t sp[MAX_TICK_JOINTS], pos[MAX_TICK_JOINTS], ff[MAX_TICK_JOINTS];
+    int64_t out[MAX_TICK_JOINTS], error[MAX_TICK_JOINTS], integral[MAX_TICK_JOINTS];
+    int saturated[MAX_TICK_JOINTS];
+    uint8_t frame[GP_MAX_WIRE];
+    size_t frame_len;
+};
+
+/* Everything the tick writes, from the plant's (counts, volts, amps) in sensed; 0 when the
+   Python path must take it from there (nothing changed; a Python error set when one
+   happened). k: position mode, underrun, watchdog and estop status bits. */
+static int fw_plan(PyObject *emu, const int64_t *k, PyObject *sensed, PyObject *pids,
+                   PyObject *buffer, PyObject *out_buf, PyObject *encoder, struct fw_tick *t,
+                   PyObject **entry)
+{
+    PyObject *counts, *volts, *amps, *sp_obj = NULL, *ff_obj = NULL, *drives, *cfg_obj;
+    Py_ssize_t nb, i;
+    int64_t drive[MAX_TICK_JOINTS * DRIVE_VALS], cfg[3 + 2 * MAX_VALS], v[MAX_VALS], dec;
+    int flag, ok = 0, streaming;
+    if (!PyTuple_CheckExact(sensed) || PyTuple_GET_SIZE(sensed) != 3)
+        return 0;
+    counts = PyTuple_GET_ITEM(sensed, 0);
+    volts = PyTuple_GET_ITEM(sensed, 1);
+    amps = PyTuple_GET_ITEM(sensed, 2);
+    t->n = PyList_GET_SIZE(pids);
+    if (t->n < 1 || t->n > MAX_TICK_JOINTS || !int_items(counts, t->n, PID_BOUND / 2, t->pos))
+        return 0;
+    /* the buffer's due entries (popped in the commit), the last one's setpoint */
+    nb = PyObject_Length(buffer);
+    if (nb < 0)
+        return 0;
+    for (i = 0, t->due = 0; i < nb; ++i) {
+        PyObject *e = PySequence_GetItem(buffer, i);
+        int64_t at;
+        if (e == NULL)
+            return 0;
+        if (!PyTuple_CheckExact(e) || PyTuple_GET_SIZE(e) < 3 || PyTuple_GET_SIZE(e) > 4 ||
+            !PyLong_Check(PyTuple_GET_ITEM(e, 0))) {
+            Py_DECREF(e);
+            return 0;
+        }
+        at = PyLong_AsLongLong(PyTuple_GET_ITEM(e, 0));
+        if (at < 0 || at > TICK_MASK) {
+            PyErr_Clear();
+            Py_DECREF(e);
+            return 0;
+        }
+        if (!NOT_AFTER(at, t->tick)) {
+            Py_DECREF(e);
+            break;
+        }
+        Py_XSETREF(*entry, e);
+        t->due += 1;
+    }
+    t->status = 0;
+    if (t->due) {
+        sp_obj = PyTuple_GET_ITEM(*entry, 1);
+        Py_INCREF(sp_obj);
+        if (PyTuple_GET_SIZE(*entry) > 3) {
+            ff_obj = PyTuple_GET_ITEM(*entry, 3);
+            Py_INCREF(ff_obj);
+        } else {
+            ff_obj = get_attr(emu, s_no_feedforward);
+        }
+    } else {
+        if (!true_attr(emu, s_setpoint_hold, &flag))
+            return 0;
+        t->status |= flag ? 0 : k[1];
+        sp_obj = get_attr(emu, s_setpoint);
+        ff_obj = get_attr(emu, s_feedforward_mv);
+    }
+    drives = typed_attr(emu, s_drives, &PyBytes_Type);
+    if (sp_obj != NULL && ff_obj != NULL && drives != NULL &&
+        PyBytes_GET_SIZE(drives) == (Py_ssize_t)(8 * DRIVE_VALS) * t->n &&
+        int_items(sp_obj, t->n, PID_BOUND / 2, t->sp) && int_items(ff_obj, t->n, MV_BOUND, t->ff)) {
+        memcpy(drive, PyBytes_AS_STRING(drives), (size_t)PyBytes_GET_SIZE(drives));
+        ok = pid_tick(pids, t->n, t->sp, t->pos, t->ff, drive, t->out, t->error, t->integral,
+                      t->saturated, &t->status);
+    }
+    Py_XDECREF(drives);
+    Py_XDECREF(ff_obj);
+    if (!ok || !true_attr(emu, s_watchdog_tripped, &flag)) {
+        Py_XDECREF(sp_obj);
+        return 0;
+    }
+    t->status |= flag ? k[2] : 0;
+    if (!true_attr(emu, s_estop, &flag) || !true_attr(emu, s_streaming, &streaming)) {
+        Py_DECREF(sp_obj);
+        return 0;
+    }
+    t->status |= flag ? k[3] : 0;
+    t->frame_len = 0;
+    ok = 1;
+    if (streaming) { /* TELEMETRY(tick, status, mode, counts, mV, mA, setpoint) */
+        ok = int_attr(emu, s_decimation, 1LL << 62, &dec) && dec >= 1;
+        if (ok && t->tick % dec == 0) {
+            cfg_obj = typed_attr(emu, s_telemetry_cfg, &PyBytes_Type);
+            ok = cfg_obj != NULL && out_buf != NULL && encoder != NULL &&
+                 read_cfg(PyBytes_AS_STRING(cfg_obj), PyBytes_GET_SIZE(cfg_obj), cfg) &&
+                 int_attr(encoder, s_seq, 0xFFFF, &t->seq) && t->seq >= 0;
+            Py_XDECREF(cfg_obj);
+            v[0] = t->tick;
+            v[1] = t->status;
+            v[2] = k[0];
+            ok = ok && 3 + 4 * t->n == (Py_ssize_t)cfg[2] && v[0] >= cfg[3] &&
+                 v[0] <= cfg[3 + cfg[2]] && v[1] >= cfg[4] && v[1] <= cfg[4 + cfg[2]] &&
+                 v[2] >= cfg[5] && v[2] <= cfg[5 + cfg[2]] && read_list(cfg, 3, counts, t->n, v) &&
+                 read_milli(volts, t->n, 3 + t->n, v) && read_milli(amps, t->n, 3 + 2 * t->n, v) &&
+                 read_list(cfg, 3 + 3 * t->n, sp_obj, t->n, v);
+            t->frame_len = ok ? frame_of(cfg, v, (unsigned)t->seq, t->frame) : 0;
+            ok = t->frame_len > 0;
+        }
+    }
+    Py_DECREF(sp_obj);
+    return ok;
+}
+
+/* The writes of a planned tick; 0 on a Python error (set). */
+static int fw_commit(PyObject *emu, PyObject *sensed, PyObject *pids, PyObject *buffer,
+                     PyObject *out_buf, PyObject *encoder, const struct fw_tick *t,
+                     PyObject *entry)
+{
+    PyObject *applied, *volts, *x;
+    Py_ssize_t i, size;
+    int bad;
+    for (i = 0; i < t->due; ++i) {
+        x = PyObject_CallMethodObjArgs(buffer, s_popleft, NULL);
+        if (x == NULL)
+            return 0;
+        Py_DECREF(x);
+    }
+    x = PyLong_FromLongLong(t->tick);
+    bad = x == NULL || set_attr(emu, s_tick, x) ||
+          set_attr(emu, s_counts, PyTuple_GET_ITEM(sensed, 0));
+    Py_XDECREF(x);
+    if (bad)
+        return 0;
+    if (t->due) {
+        PyObject *ff = PyTuple_GET_SIZE(entry) > 3 ? PyTuple_GET_ITEM(entry, 3) : NULL;
+        if (set_attr(emu, s_setpoint, PyTuple_GET_ITEM(entry, 1)) ||
+            set_attr(emu, s_setpoint_hold, PyTuple_GET_ITEM(entry, 2)))
+            return 0;
+        ff = ff ? ff : get_attr(emu, s_no_feedforward);
+        bad = ff == NULL || set_attr(emu, s_feedforward_mv, ff);
+        if (PyTuple_GET_SIZE(entry) <= 3)
+            Py_XDECREF(ff);
+        if (bad)
+            return 0;
+    }
+    if (!set_pid_state(pids, t->n, t->error, t->integral, t->saturated) ||
+        !applied_lists(t->out, t->n, &applied, &volts))
+        return 0;
+    bad = set_attr(emu, s_applied_mv, applied) ||
+          set_attr(emu, s_applied_of, applied) || set_attr(emu, s_applied_v, volts);
+    Py_DECREF(applied);
+    Py_DECREF(volts);
+    x = bad ? NULL : PyLong_FromLongLong(t->status);
+    bad = x == NULL || set_attr(emu, s_status, x);
+    Py_XDECREF(x);
+    if (bad || t->frame_len == 0)
+        return !bad;
+    x = PyLong_FromLongLong((t->seq + 1) & 0xFFFF);
+    bad = x == NULL || set_attr(encoder, s_seq, x);
+    Py_XDECREF(x);
+    size = PyByteArray_GET_SIZE(out_buf);
+    if (bad || PyByteArray_Resize(out_buf, size + (Py_ssize_t)t->frame_len) != 0)
+        return 0;
+    memcpy(PyByteArray_AS_STRING(out_buf) + size, t->frame, t->frame_len);
+    return 1;
+}
+
+/* fw_tick(emu, consts) -> True | None | (counts, volts, amps):
+   the firmware emulator's whole tick (guardid.firmware.emulator.FirmwareEmulator.advance)
+   in position mode: the plant's read (emu._read_plant of the voltages the previous C tick
+   applied), the tick count, the setpoints due from the buffer, the PID, limit stop and
+   PWM (pid_pwm), the status bits and the TELEMETRY frame (telemetry) into emu._out; True
+   when done. None (nothing done) out of position mode, when the watchdog trips at this
+   tick or the applied voltages were not the C tick's; the plant's read (nothing else
+   done) when a value is not of the kind or range this path takes: the Python path takes
+   the tick from there. consts: int64s position mode, underrun, watchdog, estop bits. */
+static PyObject *py_fw_tick(PyObject *self, PyObject *args)
+{
+    PyObject *emu, *x, *of, *u, *plant, *sensed, *pids = NULL, *buffer = NULL, *out_buf = NULL;
+    PyObject *encoder = NULL, *entry = NULL, *enc;
+    const char *kb;
+    Py_ssize_t klen;
+    int64_t k[4], mode, last, tick_us, wd_ms;
+    struct fw_tick t;
+    int same, ok;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "O!y#", &PyDict_Type, &emu, &kb, &klen))
+        return NULL;
+    if (klen != (Py_ssize_t)sizeof k)
+        Py_RETURN_NONE;
+    memcpy(k, kb, sizeof k);
+    if (!int_attr(emu, s_mode, 1LL << 30, &mode) || mode != k[0] ||
+        !int_attr(emu, s_tick, TICK_MASK, &t.tick) || t.tick < 0 ||
+        !int_attr(emu, s_last_host_tick, TICK_MASK, &last) || last < 0 ||
+        !int_attr(emu, s_tick_us, 1LL << 30, &tick_us) || tick_us < 0 ||
+        !int_attr(emu, s_watchdog_ms, 1LL << 62, &wd_ms))
+        Py_RETURN_NONE;
+    t.tick = (t.tick + 1) & TICK_MASK;
+    if (((t.tick - last) & TICK_MASK) * tick_us / 1000 >= wd_ms) /* the watchdog trips */
+        Py_RETURN_NONE;
+    x = get_attr(emu, s_applied_mv);
+    of = get_attr(emu, s_applied_of);
+    same = x != NULL && x == of && x != Py_None;
+    Py_XDECREF(x);
+    Py_XDECREF(of);
+    PyErr_Clear();
+    if (!same)
+        Py_RETURN_NONE;
+    u = get_attr(emu, s_applied_v);
+    plant = u == NULL ? NULL : get_attr(emu, s_read_plant);
+    sensed = plant == NULL ? NULL : PyObject_CallFunctionObjArgs(plant, u, NULL);
+    Py_XDECREF(u);
+    Py_XDECREF(plant);
+    if (sensed == NULL)
+        return NULL;
+    pids = typed_attr(emu, s_pids, &PyList_Type);
+    buffer = get_attr(emu, s_buffer);
+    out_buf = typed_attr(emu, s_out, &PyByteArray_Type);
+    enc = get_attr(emu, s_encoder);
+    encoder = enc == NULL ? NULL : PyObject_GenericGetDict(enc, NULL);
+    Py_XDECREF(enc);
+    PyErr_Clear();
+    ok = pids != NULL && buffer != NULL &&
+         fw_plan(emu, k, sensed, pids, buffer, out_buf, encoder, &t, &entry);
+    if (!ok && PyErr_Occurred()) { /* an error a Python path would not meet: its own path */
+        PyErr_Clear();
+    }
+    if (ok && !fw_commit(emu, sensed, pids, buffer, out_buf, encoder, &t, entry)) {
+        Py_CLEAR(sensed);
+    } else if (ok) {
+        Py_DECREF(sensed);
+        sensed = Py_True;
+        Py_INCREF(sensed);
+    }
+    Py_XDECREF(entry);
+    Py_XDECREF(pids);
+    Py_XDECREF(buffer);
+    Py_XDECREF(out_buf);
+    Py_XDECREF(encoder);
+    return sensed;
+}
+
+/* fw_setpoints(emu, frames, consts) -> count:
+   the emulator's handling (FirmwareEmulator.receive, _on_setpoint, _on_setpoint_ff) of the
+   leading frames of the list frames that are SETPOINT or SETPOINT_FF frames it queues: each
+   one's entry appended to emu.buffer, emu._last_frame the last one's, emu._last_reply
+   None; the count of frames handled. Stops (that frame left to the Python path) at a
+   frame of another kind, a retry of the previous host frame while it has an answer, a
+   frame answered by NAK (wrong joint count, e-stop, wrong mode, late, not after the last
+   buffered one, buffer full, feedforward beyond the supply) or a value of another kind.
+   consts: int64s SETPOINT id, SETPOINT_FF id, position mode, buffer depth, hold flag bit,
+   joint count n, then the n supplies [mV]. */
+static PyObject *py_fw_setpoints(PyObject *self, PyObject *args)
+{
+    PyObject *emu, *frames, *buffer = NULL, *last_frame = NULL, *last_reply = NULL, *x;
+    const char *kb;
+    Py_ssize_t klen, nf, i, nb, n, done = 0;
+    int64_t k[6 + MAX_TICK_JOINTS], mode, now, last_tick = 0;
+    int estop, ok = 1, failed = 0;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "O!O!y#", &PyDict_Type, &emu, &PyList_Type, &frames, &kb, &klen))
+        return NULL;
+    if (klen < 48 || klen > (Py_ssize_t)sizeof k || klen % 8)
+        return PyLong_FromSsize_t(0);
+    memcpy(k, kb, (size_t)klen);
+    n = (Py_ssize_t)k[5];
+    nf = PyList_GET_SIZE(frames);
+    if (nf == 0 || n < 1 || klen != 8 * (6 + n) ||
+        !int_attr(emu, s_mode, 1LL << 30, &mode) || !int_attr(emu, s_tick, TICK_MASK, &now) ||
+        now < 0 || !true_attr(emu, s_estop, &estop))
+        goto out;
+    buffer = get_attr(emu, s_buffer);
+    last_frame = get_attr(emu, s_last_frame);
+    last_reply = get_attr(emu, s_last_reply);
+    nb = buffer == NULL ? -1 : PyObject_Length(buffer);
+    if (last_frame == NULL || last_reply == NULL || nb < 0)
+        goto out;
+    if (nb > 0) { /* the last buffered entry's tick */
+        PyObject *e = PySequence_GetItem(buffer, nb - 1);
+        ok = e != NULL && PyTuple_Check(e) && PyTuple_GET_SIZE(e) >= 1 &&
+             PyLong_Check(PyTuple_GET_ITEM(e, 0));
+        last_tick = ok ? PyLong_AsLongLong(PyTuple_GET_ITEM(e, 0)) : 0;
+        Py_XDECREF(e);
+        if (!ok || last_tick < 0 || last_tick > TICK_MASK)
+            goto out;
+    }
+    for (i = 0; i < nf; ++i) {
+        PyObject *frame = PyList_GET_ITEM(frames, i), *msg, *position, *entry, *list, *ff = NULL;
+        int64_t id, tick, flags;
+        Py_ssize_t size, j;
+        if (!PyTuple_Check(frame) || PyTuple_GET_SIZE(frame) != 3 ||
+            !PyLong_Check(PyTuple_GET_ITEM(frame, 0)))
+            break;
+        id = PyLong_AsLongLong(PyTuple_GET_ITEM(frame, 0));
+        msg = PyTuple_GET_ITEM(frame, 2);
+        size = id == k[0] ? 3 : id == k[1] ? 4 : 0;
+        if (size == 0 || !PyTuple_Check(msg) || PyTuple_GET_SIZE(msg) != size)
+            break;
+        if (i == 0 && last_reply != Py_None) { /* a retry is answered again by Python */
+            int eq = PyObject_RichCompareBool(frame, last_frame, Py_EQ);
+            if (eq != 0)
+                break;
+        }
+        position = PyTuple_GET_ITEM(msg, 2);
+        if (!PyLong_Check(PyTuple_GET_ITEM(msg, 0)) || !PyLong_Check(PyTuple_GET_ITEM(msg, 1)) ||
+            !PyTuple_Check(position))
+            break;
+        tick = PyLong_AsLongLong(PyTuple_GET_ITEM(msg, 0));
+        flags = PyLong_AsLongLong(PyTuple_GET_ITEM(msg, 1));
+        if (PyErr_Occurred() || tick < 0 || tick > TICK_MASK || PyTuple_GET_SIZE(position) != n ||
+            estop || mode != k[2] || NOT_AFTER(tick, now) || (nb && NOT_AFTER(tick, last_tick)) ||
+            nb >= k[3])
+            break;
+        if (size == 4) { /* SETPOINT_FF: each feedforward within its supply */
+            PyObject *f = PyTuple_GET_ITEM(msg, 3);
+            if (!PyTuple_Check(f) || PyTuple_GET_SIZE(f) != n)
+                break;
+            for (j = 0; j < n; ++j) {
+                PyObject *o = PyTuple_GET_ITEM(f, j);
+                int overflow = 0;
+                long long mv = PyLong_Check(o) ? PyLong_AsLongLongAndOverflow(o, &overflow) : 0;
+                if (!PyLong_Check(o) || overflow || mv > k[6 + j] || mv < -k[6 + j])
+                    break;
+            }
+            if (j < n)
+                break;
+            ff = PySequence_List(f);
+        }
+        list = PySequence_List(position);
+        entry = list == NULL || (size == 4 && ff == NULL) ? NULL : PyTuple_New(size);
+        if (entry == NULL) {
+            Py_XDECREF(list);
+            Py_XDECREF(ff);
+            failed = 1;
+            goto out;
+        }
+        Py_INCREF(PyTuple_GET_ITEM(msg, 0));
+        PyTuple_SET_ITEM(entry, 0, PyTuple_GET_ITEM(msg, 0));
+        PyTuple_SET_ITEM(entry, 1, list);
+        x = flags & k[4] ? Py_True : Py_False;
+        Py_INCREF(x);
+        PyTuple_SET_ITEM(entry, 2, x);
+        if (size == 4)
+            PyTuple_SET_ITEM(entry, 3, ff);
+        x = PyObject_CallMethodObjArgs(buffer, s_append, entry, NULL);
+        Py_DECREF(entry);
+        failed = x == NULL || set_attr(emu, s_last_frame, frame) ||
+                 set_attr(emu, s_last_reply, Py_None);
+        Py_XDECREF(x);
+        if (failed)
+            goto out;
+        nb += 1;
+        last_tick = tick;
+        done = i + 1;
+    }
+out:
+    Py_XDECREF(buffer);
+    Py_XDECREF(last_frame);
+    Py_XDECREF(last_reply);
+    if (failed)
+        return NULL;
+    PyErr_Clear(); /* a value this path does not take: the Python path meets it */
+    return PyLong_FromSsize_t(done);
+}
+
 static PyMethodDef methods[] = {
     {"encode", py_encode, METH_VARARGS, "One wire frame from flattened values, or None."},
     {"encode_rows", py_encode_rows, METH_VARARGS, "Streamed setpoint frames from rows."},
     {"scan", py_scan, METH_VARARGS, "The leading valid frames of one kind in a chunk."},
     {"pid_pwm", py_pid_pwm, METH_VARARGS, "The firmware emulator's position-mode tick."},
     {"telemetry", py_telemetry, METH_VARARGS, "The firmware emulator's TELEMETRY frame."},
+    {"fw_tick", py_fw_tick, METH_VARARGS, "The firmware emulator's position-mode tick."},
+    {"fw_setpoints", py_fw_setpoints, METH_VARARGS, "The emulator's queued setpoint frames."},
     {NULL, NULL, 0, NULL},
 };
 
@@ -551,6 +1032,33 @@ static struct PyModuleDef module = {
     PyModuleDef_HEAD_INIT, "gp_pyext", "The protocol's C codec for the host's hot paths.", -1,
     methods, NULL, NULL, NULL, NULL,
 };
+
+static int intern_names(void)
+{
+    struct {
+        PyObject **slot;
+        const char *name;
+    } names[] = {
+        {&s_mode, "mode"}, {&s_applied_mv, "applied_mv"}, {&s_applied_of, "_applied_of"},
+        {&s_applied_v, "_applied_v"}, {&s_tick, "tick"}, {&s_last_host_tick, "last_host_tick"},
+        {&s_tick_us, "tick_us"}, {&s_watchdog_ms, "watchdog_ms"}, {&s_read_plant, "_read_plant"},
+        {&s_buffer, "buffer"}, {&s_setpoint, "setpoint"}, {&s_setpoint_hold, "setpoint_hold"},
+        {&s_feedforward_mv, "feedforward_mv"}, {&s_no_feedforward, "_no_feedforward"},
+        {&s_pids, "pids"}, {&s_drives, "_drives"}, {&s_watchdog_tripped, "watchdog_tripped"},
+        {&s_estop, "estop"}, {&s_streaming, "streaming"}, {&s_decimation, "decimation"},
+        {&s_encoder, "encoder"}, {&s_seq, "seq"}, {&s_telemetry_cfg, "_telemetry_cfg"},
+        {&s_out, "_out"}, {&s_counts, "counts"}, {&s_status, "status"},
+        {&s_popleft, "popleft"}, {&s_append, "append"}, {&s_last_frame, "_last_frame"},
+        {&s_last_reply, "_last_reply"},
+    };
+    size_t i;
+    for (i = 0; i < sizeof names / sizeof names[0]; ++i) {
+        *names[i].slot = PyUnicode_InternFromString(names[i].name);
+        if (*names[i].slot == NULL)
+            return 0;
+    }
+    return 1;
+}
 
 PyMODINIT_FUNC PyInit_gp_pyext(void)
 {
@@ -563,6 +1071,8 @@ PyMODINIT_FUNC PyInit_gp_pyext(void)
     s_prev_error = PyUnicode_InternFromString("prev_error");
     s_saturated = PyUnicode_InternFromString("saturated");
     if (!s_limit_mv || !s_kp || !s_ki || !s_kd || !s_integral || !s_prev_error || !s_saturated)
+        return NULL;
+    if (!intern_names())
         return NULL;
     return PyModule_Create(&module);
 }

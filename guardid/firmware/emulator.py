@@ -63,6 +63,15 @@ if [f.name for f in M["SETPOINT"].SPEC.fields] != ["tick", "flags", "position"] 
 ] != ["tick", "flags", "position", "feedforward"]:
     raise ImportError("the emulator's SETPOINT handlers no longer match the protocol")
 
+#: the attributes the C tick and setpoint handler (fw_tick, fw_setpoints) read and write in
+#: the emulator's __dict__
+_C_STATE = (
+    "mode", "applied_mv", "_applied_of", "_applied_v", "tick", "last_host_tick", "tick_us",
+    "watchdog_ms", "_read_plant", "buffer", "setpoint", "setpoint_hold", "feedforward_mv",
+    "_no_feedforward", "pids", "_drives", "watchdog_tripped", "estop", "streaming",
+    "decimation", "encoder", "_telemetry_cfg", "_out", "counts", "status", "_last_frame",
+    "_last_reply",
+)  # fmt: skip
 SETPOINT_DEPTH = 8  #: setpoints buffered ahead of their tick
 DEFAULT_WATCHDOG_MS = 250
 FIRMWARE_ID = 0x47554131  #: "GUA1", the emulators (Python and the C core in the loop)
@@ -174,6 +183,22 @@ class FirmwareEmulator:
         fits = self.n <= MAX_JOINTS and all(abs(b) < 2**62 for pair in bounds for b in pair)
         self._pid_pwm = fast.pid_pwm if fast is not None and fits else None
         self._telemetry_c = fast.telemetry if fast is not None and fits else None
+        # the whole position-mode tick and the queueing of setpoints in C (fw_tick,
+        # fw_setpoints: tests/test_firmware_fast.py), with the constants they compare with;
+        # they read and write the attributes in the instances' __dict__: only while no class
+        # attribute has one of their names (and SETPOINT, SETPOINT_FF go to these handlers)
+        own = not any(hasattr(type(self), a) for a in _C_STATE) and not any(
+            hasattr(type(x), a) for x, a in [(self.encoder, "seq"), *((p, "kp") for p in self.pids)]
+        )
+        handlers = [self._HANDLERS.get(k) for k in ("Setpoint", "SetpointFf")]
+        plain = handlers == [FirmwareEmulator._on_setpoint, FirmwareEmulator._on_setpoint_ff]
+        self._tick_c = fast.fw_tick if fast is not None and fits and own else None
+        self._setpoints_c = fast.fw_setpoints if self._tick_c is not None and plain else None
+        self._tick_consts = struct.pack("=4q", POSITION, UNDERRUN_BIT, WATCHDOG_BIT, ESTOP_BIT)
+        self._setpoint_consts = struct.pack(
+            f"={6 + self.n}q", M["SETPOINT"].MSG_ID, M["SETPOINT_FF"].MSG_ID, POSITION,
+            SETPOINT_DEPTH, HOLD_BIT, self.n, *self.supply_mv
+        )  # fmt: skip
         self._telemetry_cfg = fast_config(TELEMETRY.SPEC, self.n) if fits else b""
         self._drives = b"".join(
             struct.pack("=7q", lim is not None, *b, levels, supply, sat, stop)
@@ -223,6 +248,10 @@ class FirmwareEmulator:
         frames = self.parser.feed(data)
         if frames:  # no handler changes the tick
             self.last_host_tick = self.tick
+            if self._setpoints_c is not None:  # the leading setpoints it queues, in C
+                done = self._setpoints_c(self.__dict__, frames, self._setpoint_consts)
+                if done:
+                    frames = frames[done:]
         for frame in frames:  # a Frame is the (msg_id, seq, message) key
             if self._last_reply is not None and frame == self._last_frame:
                 self._send(self._last_reply)  # a retry: answer again, change nothing
@@ -378,9 +407,16 @@ class FirmwareEmulator:
     # ------------------------------------------------------------------ the 15 ms tick
     def advance(self) -> None:
         """One sample period of the plant, then the firmware's tick (module docstring)."""
-        applied = self.applied_mv  # [V] from the C tick when it made that list
-        u = self._applied_v if applied is self._applied_of else [mv * 1e-3 for mv in applied]
-        counts, volts, amps = self._read_plant(u)
+        sensed = None  # the C extension's whole position-mode tick when it takes it
+        if self._tick_c is not None:
+            sensed = self._tick_c(self.__dict__, self._tick_consts)
+            if sensed is True:  # done
+                return
+        if sensed is None:  # else the plant was read: the Python path goes on from there
+            applied = self.applied_mv  # [V] from the C tick when it made that list
+            u = self._applied_v if applied is self._applied_of else [mv * 1e-3 for mv in applied]
+            sensed = self._read_plant(u)
+        counts, volts, amps = sensed
         self.tick = tick = (self.tick + 1) & TICK_MASK
         self.counts = counts
         status = 0
