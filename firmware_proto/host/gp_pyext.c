@@ -894,11 +894,12 @@ static PyObject *py_fw_tick(PyObject *self, PyObject *args)
     return sensed;
 }
 
-/* fw_setpoints(emu, frames, consts) -> count:
+/* fw_setpoints(emu, frames, start, consts) -> index:
    the emulator's handling (FirmwareEmulator.receive, _on_setpoint, _on_setpoint_ff) of the
-   leading frames of the list frames that are SETPOINT or SETPOINT_FF frames it queues: each
-   one's entry appended to emu.buffer, emu._last_frame the last one's, emu._last_reply
-   None; the count of frames handled. Stops (that frame left to the Python path) at a
+   frames of the list frames from index start on that are SETPOINT or SETPOINT_FF frames it
+   queues: each one's entry appended to emu.buffer, emu._last_frame the last one's,
+   emu._last_reply None; the index of the first frame not handled. emu: the emulator's
+   __dict__. Stops (that frame left to the Python path) at a
    frame of another kind, a retry of the previous host frame while it has an answer, a
    frame answered by NAK (wrong joint count, e-stop, wrong mode, late, not after the last
    buffered one, buffer full, feedforward beyond the supply) or a value of another kind.
@@ -908,18 +909,20 @@ static PyObject *py_fw_setpoints(PyObject *self, PyObject *args)
 {
     PyObject *emu, *frames, *buffer = NULL, *last_frame = NULL, *last_reply = NULL, *x;
     const char *kb;
-    Py_ssize_t klen, nf, i, nb, n, done = 0;
+    Py_ssize_t klen, nf, i, nb, n, start, done;
     int64_t k[6 + MAX_TICK_JOINTS], mode, now, last_tick = 0;
     int estop, ok = 1, failed = 0;
     (void)self;
-    if (!PyArg_ParseTuple(args, "O!O!y#", &PyDict_Type, &emu, &PyList_Type, &frames, &kb, &klen))
+    if (!PyArg_ParseTuple(args, "O!O!ny#", &PyDict_Type, &emu, &PyList_Type, &frames, &start,
+                          &kb, &klen))
         return NULL;
+    done = start;
     if (klen < 48 || klen > (Py_ssize_t)sizeof k || klen % 8)
-        return PyLong_FromSsize_t(0);
+        return PyLong_FromSsize_t(done);
     memcpy(k, kb, (size_t)klen);
     n = (Py_ssize_t)k[5];
     nf = PyList_GET_SIZE(frames);
-    if (nf == 0 || n < 1 || klen != 8 * (6 + n) ||
+    if (start < 0 || start >= nf || n < 1 || klen != 8 * (6 + n) ||
         !int_attr(emu, s_mode, 1LL << 30, &mode) || !int_attr(emu, s_tick, TICK_MASK, &now) ||
         now < 0 || !true_attr(emu, s_estop, &estop))
         goto out;
@@ -938,7 +941,7 @@ static PyObject *py_fw_setpoints(PyObject *self, PyObject *args)
         if (!ok || last_tick < 0 || last_tick > TICK_MASK)
             goto out;
     }
-    for (i = 0; i < nf; ++i) {
+    for (i = start; i < nf; ++i) {
         PyObject *frame = PyList_GET_ITEM(frames, i), *msg, *position, *entry, *list, *ff = NULL;
         int64_t id, tick, flags;
         Py_ssize_t size, j;
@@ -950,7 +953,7 @@ static PyObject *py_fw_setpoints(PyObject *self, PyObject *args)
         size = id == k[0] ? 3 : id == k[1] ? 4 : 0;
         if (size == 0 || !PyTuple_Check(msg) || PyTuple_GET_SIZE(msg) != size)
             break;
-        if (i == 0 && last_reply != Py_None) { /* a retry is answered again by Python */
+        if (i == start && last_reply != Py_None) { /* a retry: answered again by Python */
             int eq = PyObject_RichCompareBool(frame, last_frame, Py_EQ);
             if (eq != 0)
                 break;

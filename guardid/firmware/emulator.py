@@ -244,15 +244,18 @@ class FirmwareEmulator:
     # ------------------------------------------------------------------ host side
     def receive(self, data: bytes) -> None:
         """Handle every whole valid frame in ``data`` (partial frames wait for more)."""
-        handlers = self._by_id
+        handlers, fast = self._by_id, self._setpoints_c
         frames = self.parser.feed(data)
         if frames:  # no handler changes the tick
             self.last_host_tick = self.tick
-            if self._setpoints_c is not None:  # the leading setpoints it queues, in C
-                done = self._setpoints_c(self.__dict__, frames, self._setpoint_consts)
-                if done:
-                    frames = frames[done:]
-        for frame in frames:  # a Frame is the (msg_id, seq, message) key
+        k, n = 0, len(frames)
+        while k < n:
+            if fast is not None:  # the setpoints from frame k on that it queues, in C
+                k = fast(self.__dict__, frames, k, self._setpoint_consts)
+                if k == n:
+                    break
+            frame = frames[k]  # a Frame is the (msg_id, seq, message) key
+            k += 1
             if self._last_reply is not None and frame == self._last_frame:
                 self._send(self._last_reply)  # a retry: answer again, change nothing
                 continue
