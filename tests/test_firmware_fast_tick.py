@@ -14,6 +14,8 @@ import os
 
 import pytest
 
+from guardid.fakeport.engine import LinkEngine
+from guardid.fakeport.faults import FaultConfig
 from guardid.firmware import FirmwareEmulator
 from guardid.native import find_compiler
 from guardid.protocol import ENUMS, Encoder, FrameParser, encode
@@ -65,9 +67,10 @@ def _state(fw) -> tuple:
             fw._last_frame, fw._last_reply, fw.watchdog_tripped, fw.estop)  # fmt: skip
 
 
-def _same(fast, slow, data=None, ticks=0, seen=None) -> bytes:
+def _same(fast, slow, data=None, ticks=0, seen=None, runs=False) -> bytes:
     """Both get ``data`` then run ``ticks``; the same bytes out and state, tick by tick
-    (their status bits added to ``seen``)."""
+    (their status bits added to ``seen``); ``runs``: ``fast`` runs them by advance_ticks
+    (then advance for the rest), compared after them."""
     out = b""
     if data is not None:
         fast.receive(data)
@@ -75,6 +78,18 @@ def _same(fast, slow, data=None, ticks=0, seen=None) -> bytes:
         out = fast.take_output()
         assert out == slow.take_output()
         assert _state(fast) == _state(slow)
+    if runs and ticks:
+        done = fast.advance_ticks(ticks)
+        for _ in range(ticks - done):
+            fast.advance()
+        for _ in range(ticks):
+            slow.advance()
+        got = fast.take_output()
+        assert got == slow.take_output()
+        assert _state(fast) == _state(slow)
+        if seen is not None:
+            seen.add(fast.status)
+        return out + got
     for _ in range(ticks):
         fast.advance()
         slow.advance()
@@ -162,24 +177,33 @@ def _stream(host, rows, first, every=1, ff=False, hold_at=-1) -> bytes:
     return b"".join(frames)
 
 
-def test_the_c_tick_is_the_python_tick_through_every_mode_and_fault():
-    """Tick by tick the same bytes and state: streamed setpoints with feedforward, a hold,
-    underruns, saturation and the tilt's limit stop, decimated telemetry, a current beyond
-    int16 mA, a count beyond the C tick's range (its Python path from the plant's read on),
-    the watchdog's trip, voltage mode, an e-stop; the C tick took most ticks."""
+@pytest.mark.parametrize("runs", [False, True], ids=["advance", "advance_ticks"])
+def test_the_c_tick_is_the_python_tick_through_every_mode_and_fault(runs):
+    """Tick by tick (or run by run of advance_ticks) the same bytes and state: streamed
+    setpoints with feedforward, a hold, underruns, saturation and the tilt's limit stop,
+    decimated telemetry, a current beyond int16 mA, a count beyond the C tick's range (its
+    Python path from the plant's read on), the watchdog's trip, voltage mode, an e-stop;
+    the C tick took most ticks."""
     fast, slow = _pair(huge_at=(40,), amps_at=(30, 31))
-    taken, tick_c = [], fast._tick_c
+    taken, tick_c, ticks_c = [], fast._tick_c, fast._ticks_c
 
     def counted(state, consts):
         got = tick_c(state, consts)
         taken.append("done" if got is True else "no" if got is None else "from the read")
         return got
 
-    fast._tick_c = counted
+    def counted_runs(state, consts, count):
+        done, got = ticks_c(state, consts, count)
+        taken.extend(["done"] * done)
+        if done < count:
+            taken.append("no" if got is None else "from the read")
+        return done, got
+
+    fast._tick_c, fast._ticks_c = counted, counted_runs
     host, seen = Encoder(), set()
 
     def same(data=None, ticks=0):
-        return _same(fast, slow, data, ticks, seen)
+        return _same(fast, slow, data, ticks, seen, runs)
 
     same(host.encode(M["SET_MODE"](MODE["position"])), ticks=2)
     same(host.encode(M["START_STREAM"](2)))
@@ -210,3 +234,35 @@ def test_the_c_tick_is_the_python_tick_through_every_mode_and_fault():
     for name in ("saturated_j0", "saturated_j1", "limit_j1", "setpoint_underrun",
                  "watchdog_tripped", "estop"):  # fmt: skip
         assert bits & 1 << status_bits[name], name
+
+
+class _OneAtATime:
+    """The emulator without advance_ticks: the engine's tick by tick path."""
+
+    def __init__(self, fw) -> None:
+        self.fw, self.tick_period_s = fw, fw.tick_period_s
+        self.receive, self.advance, self.take_output = fw.receive, fw.advance, fw.take_output
+
+
+@pytest.mark.parametrize("deadline_ticks", [3.5, 4.0, 0.5, 40.0])
+def test_run_ticks_runs_the_ticks_due_by_the_deadline_as_one_at_a_time(deadline_ticks):
+    """LinkEngine.run_ticks through advance_ticks: the ticks due by the deadline (a tick
+    at the deadline is due), the clock at the last one, the same bytes and state as tick by
+    tick."""
+    fast, slow = _pair()
+    calls, ticks_c = [], fast._ticks_c
+    fast._ticks_c = lambda *args: calls.append(args[2]) or ticks_c(*args)
+    engines = [LinkEngine(d, FaultConfig(), 1) for d in (fast, _OneAtATime(slow))]
+    host = Encoder()
+    frames = host.encode(M["SET_MODE"](MODE["position"])) + host.encode(M["START_STREAM"](1))
+    frames += _stream(host, [(100 * k, -80 * k) for k in range(8)], 1)
+    ran = 1 + min(6, int(deadline_ticks))
+    for engine in engines:
+        engine.host_write(frames)
+        engine.run_ticks(1, engine.tick_ns)  # (the first tick in position mode: Python's)
+        engine.run_ticks(6, round(engine.now_ns + deadline_ticks * engine.tick_ns))
+    assert [e.ticks for e in engines] == [ran, ran]
+    assert [e.now_ns for e in engines] == [ran * engines[0].tick_ns] * 2
+    assert engines[0].take() == engines[1].take()
+    assert _state(fast) == _state(slow) and fast.tick == ran
+    assert calls == [1] + ([ran - 1] if ran > 1 else [])  # (the first: 0 done, in Python)

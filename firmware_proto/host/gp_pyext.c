@@ -819,30 +819,15 @@ static int fw_commit(PyObject *emu, PyObject *sensed, PyObject *pids, PyObject *
     return 1;
 }
 
-/* fw_tick(emu, consts) -> True | None | (counts, volts, amps):
-   the firmware emulator's whole tick (guardid.firmware.emulator.FirmwareEmulator.advance)
-   in position mode: the plant's read (emu._read_plant of the voltages the previous C tick
-   applied), the tick count, the setpoints due from the buffer, the PID, limit stop and
-   PWM (pid_pwm), the status bits and the TELEMETRY frame (telemetry) into emu._out; True
-   when done. None (nothing done) out of position mode, when the watchdog trips at this
-   tick or the applied voltages were not the C tick's; the plant's read (nothing else
-   done) when a value is not of the kind or range this path takes: the Python path takes
-   the tick from there. consts: int64s position mode, underrun, watchdog, estop bits. */
-static PyObject *py_fw_tick(PyObject *self, PyObject *args)
+/* fw_tick's tick (see there): a new reference to True, None or the plant's read; NULL on an
+   error (the plant's). */
+static PyObject *one_tick(PyObject *emu, const int64_t *k)
 {
-    PyObject *emu, *x, *of, *u, *plant, *sensed, *pids = NULL, *buffer = NULL, *out_buf = NULL;
+    PyObject *x, *of, *u, *plant, *sensed, *pids = NULL, *buffer = NULL, *out_buf = NULL;
     PyObject *encoder = NULL, *entry = NULL, *enc;
-    const char *kb;
-    Py_ssize_t klen;
-    int64_t k[4], mode, last, tick_us, wd_ms;
+    int64_t mode, last, tick_us, wd_ms;
     struct fw_tick t;
     int same, ok;
-    (void)self;
-    if (!PyArg_ParseTuple(args, "O!y#", &PyDict_Type, &emu, &kb, &klen))
-        return NULL;
-    if (klen != (Py_ssize_t)sizeof k)
-        Py_RETURN_NONE;
-    memcpy(k, kb, sizeof k);
     if (!int_attr(emu, s_mode, 1LL << 30, &mode) || mode != k[0] ||
         !int_attr(emu, s_tick, TICK_MASK, &t.tick) || t.tick < 0 ||
         !int_attr(emu, s_last_host_tick, TICK_MASK, &last) || last < 0 ||
@@ -892,6 +877,67 @@ static PyObject *py_fw_tick(PyObject *self, PyObject *args)
     Py_XDECREF(out_buf);
     Py_XDECREF(encoder);
     return sensed;
+}
+
+/* The consts of fw_tick and fw_ticks into k; 0 when they are not 4 int64s. */
+static int tick_consts(const char *kb, Py_ssize_t klen, int64_t *k)
+{
+    if (klen != 4 * (Py_ssize_t)sizeof *k)
+        return 0;
+    memcpy(k, kb, (size_t)klen);
+    return 1;
+}
+
+/* fw_tick(emu, consts) -> True | None | (counts, volts, amps):
+   the firmware emulator's whole tick (guardid.firmware.emulator.FirmwareEmulator.advance)
+   in position mode: the plant's read (emu._read_plant of the voltages the previous C tick
+   applied), the tick count, the setpoints due from the buffer, the PID, limit stop and
+   PWM (pid_pwm), the status bits and the TELEMETRY frame (telemetry) into emu._out; True
+   when done. None (nothing done) out of position mode, when the watchdog trips at this
+   tick or the applied voltages were not the C tick's; the plant's read (nothing else
+   done) when a value is not of the kind or range this path takes: the Python path takes
+   the tick from there. consts: int64s position mode, underrun, watchdog, estop bits. */
+static PyObject *py_fw_tick(PyObject *self, PyObject *args)
+{
+    PyObject *emu;
+    const char *kb;
+    Py_ssize_t klen;
+    int64_t k[4];
+    (void)self;
+    if (!PyArg_ParseTuple(args, "O!y#", &PyDict_Type, &emu, &kb, &klen))
+        return NULL;
+    if (!tick_consts(kb, klen, k))
+        Py_RETURN_NONE;
+    return one_tick(emu, k);
+}
+
+/* fw_ticks(emu, consts, count) -> (done, None | (counts, volts, amps)):
+   up to count ticks of fw_tick in a row: done, the ticks it did; it stops at the first
+   that is not done, with None when that tick did nothing (the Python path runs it), or
+   with its plant's read (the Python path takes that tick from there). */
+static PyObject *py_fw_ticks(PyObject *self, PyObject *args)
+{
+    PyObject *emu, *got = NULL;
+    const char *kb;
+    Py_ssize_t klen, count, done = 0;
+    int64_t k[4];
+    (void)self;
+    if (!PyArg_ParseTuple(args, "O!y#n", &PyDict_Type, &emu, &kb, &klen, &count))
+        return NULL;
+    if (tick_consts(kb, klen, k))
+        for (; done < count; ++done) {
+            got = one_tick(emu, k);
+            if (got == NULL)
+                return NULL;
+            if (got != Py_True)
+                break;
+            Py_CLEAR(got);
+        }
+    if (got == NULL) {
+        got = Py_None;
+        Py_INCREF(got);
+    }
+    return Py_BuildValue("(nN)", done, got);
 }
 
 /* fw_setpoints(emu, frames, start, consts) -> index:
@@ -1027,6 +1073,7 @@ static PyMethodDef methods[] = {
     {"pid_pwm", py_pid_pwm, METH_VARARGS, "The firmware emulator's position-mode tick."},
     {"telemetry", py_telemetry, METH_VARARGS, "The firmware emulator's TELEMETRY frame."},
     {"fw_tick", py_fw_tick, METH_VARARGS, "The firmware emulator's position-mode tick."},
+    {"fw_ticks", py_fw_ticks, METH_VARARGS, "Position-mode ticks of fw_tick in a row."},
     {"fw_setpoints", py_fw_setpoints, METH_VARARGS, "The emulator's queued setpoint frames."},
     {NULL, NULL, 0, NULL},
 };

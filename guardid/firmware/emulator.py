@@ -193,6 +193,9 @@ class FirmwareEmulator:
         handlers = [self._HANDLERS.get(k) for k in ("Setpoint", "SetpointFf")]
         plain = handlers == [FirmwareEmulator._on_setpoint, FirmwareEmulator._on_setpoint_ff]
         self._tick_c = fast.fw_tick if fast is not None and fits and own else None
+        # (several ticks a call: only while advance is this class's, which they stand for)
+        plain_advance = type(self).advance is FirmwareEmulator.advance
+        self._ticks_c = fast.fw_ticks if self._tick_c is not None and plain_advance else None
         self._setpoints_c = fast.fw_setpoints if self._tick_c is not None and plain else None
         self._tick_consts = struct.pack("=4q", POSITION, UNDERRUN_BIT, WATCHDOG_BIT, ESTOP_BIT)
         self._setpoint_consts = struct.pack(
@@ -419,6 +422,22 @@ class FirmwareEmulator:
             applied = self.applied_mv  # [V] from the C tick when it made that list
             u = self._applied_v if applied is self._applied_of else [mv * 1e-3 for mv in applied]
             sensed = self._read_plant(u)
+        self._tick_from(sensed)
+
+    def advance_ticks(self, count: int) -> int:
+        """Up to ``count`` ticks, as many calls of :meth:`advance`, in one call of the C
+        extension (``fw_ticks``); returns the ticks run: fewer than ``count`` (maybe 0)
+        when a tick is not one the C tick does whole (the caller advances from there)."""
+        if self._ticks_c is None:
+            return 0
+        done, sensed = self._ticks_c(self.__dict__, self._tick_consts, count)
+        if sensed is not None:  # that tick's plant was read: the Python path finishes it
+            self._tick_from(sensed)
+            done += 1
+        return done
+
+    def _tick_from(self, sensed) -> None:
+        """The tick after the plant's read ``sensed``: (counts, voltage [V], current [A])."""
         counts, volts, amps = sensed
         self.tick = tick = (self.tick + 1) & TICK_MASK
         self.counts = counts
