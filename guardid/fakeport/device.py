@@ -23,7 +23,9 @@ class Device(Protocol):
     # optional ``runs_ahead = True``: host frames are handled between ticks, by their
     # order alone (not by the tick they come at, but for the watchdog and late setpoints,
     # which the host guards): a lock-step read may run the device several ticks ahead
-    # (``read_some(ahead_ticks)``); a device timing its UART by clock cycles must not
+    # (``read_some(ahead_ticks)``); a device timing its UART by clock cycles must not;
+    # optional ``advance_ticks(count) -> int``: up to count ticks as count advance() calls
+    # in one call, returning how many ran (LinkEngine.run_ticks goes on tick by tick)
 
     def receive(self, data: bytes) -> None:
         """Accept bytes from the host; responses may be queued for take_output()."""

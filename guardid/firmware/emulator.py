@@ -20,7 +20,12 @@ timing rules require. The portable C core (``firmware_proto/core``, in the loop 
 :mod:`guardid.firmware.c_core`) implements the same state machine with the same integer
 arithmetic; tests/test_firmware_c.py holds both to identical bytes. Steps 4 and 5 of a position-mode
 tick run in the host's C extension when it is built (:mod:`guardid.protocol.fastcodec`:
-``pid_pwm``, ``telemetry``; the same integers and bytes, tests/test_firmware_fast.py).
+``pid_pwm``, ``telemetry``; the same integers and bytes, tests/test_firmware_fast.py); so
+does a whole position-mode tick (``fw_tick``; several in a row, ``fw_ticks``, for
+:meth:`FirmwareEmulator.advance_ticks`) and the queueing of SETPOINT / SETPOINT_FF frames
+(``fw_setpoints``), which read and write this object's attributes and leave every other
+case to the Python path: a NAK, a retry, the watchdog's trip, another mode, a value of
+another kind or range (tests/test_firmware_fast_tick.py).
 
 Host frames are handled as they arrive (between ticks). A frame equal to the previous host
 frame (same id, sequence number and payload: the host retrying a command whose ACK was lost)

@@ -4,7 +4,9 @@
 ``guard_proto_msgs.h``) packs one frame per call and takes the leading valid frames of one
 kind out of a chunk, making the Python objects itself: the per-frame COBS, CRC and struct
 calls of the Python path in one call; it also runs the firmware emulator's position-mode
-tick and TELEMETRY frame (``pid_pwm``, ``telemetry``: guardid.firmware.emulator). Built
+tick and TELEMETRY frame (``pid_pwm``, ``telemetry``), its whole position-mode tick, one or
+several in a row (``fw_tick``, ``fw_ticks``), and its queueing of SETPOINT frames
+(``fw_setpoints``: guardid.firmware.emulator, tests/test_firmware_fast_tick.py). Built
 once into the cache by :func:`guardid.native.cached_library`. :func:`module` is None
 without a C compiler, without Python's headers, without the sources (an install without
 ``firmware_proto/``), when it does not compile, cannot be written to the cache or does not
