@@ -954,6 +954,7 @@ static PyObject *py_fw_ticks(PyObject *self, PyObject *args)
 static PyObject *py_fw_setpoints(PyObject *self, PyObject *args)
 {
     PyObject *emu, *frames, *buffer = NULL, *last_frame = NULL, *last_reply = NULL, *x;
+    PyObject *append = NULL;
     const char *kb;
     Py_ssize_t klen, nf, i, nb, n, start, done;
     int64_t k[6 + MAX_TICK_JOINTS], mode, now, last_tick = 0;
@@ -1045,10 +1046,11 @@ static PyObject *py_fw_setpoints(PyObject *self, PyObject *args)
         PyTuple_SET_ITEM(entry, 2, x);
         if (size == 4)
             PyTuple_SET_ITEM(entry, 3, ff);
-        x = PyObject_CallMethodObjArgs(buffer, s_append, entry, NULL);
+        if (append == NULL)
+            append = PyObject_GetAttr(buffer, s_append);
+        x = append == NULL ? NULL : PyObject_CallFunctionObjArgs(append, entry, NULL);
         Py_DECREF(entry);
-        failed = x == NULL || set_attr(emu, s_last_frame, frame) ||
-                 set_attr(emu, s_last_reply, Py_None);
+        failed = x == NULL;
         Py_XDECREF(x);
         if (failed)
             goto out;
@@ -1057,6 +1059,20 @@ static PyObject *py_fw_setpoints(PyObject *self, PyObject *args)
         done = i + 1;
     }
 out:
+    if (done > start) { /* the last frame queued is the previous host frame, unanswered */
+        PyObject *type, *value, *trace;
+        PyErr_Fetch(&type, &value, &trace);
+        if (set_attr(emu, s_last_frame, PyList_GET_ITEM(frames, done - 1)) ||
+            set_attr(emu, s_last_reply, Py_None)) {
+            failed = 1;
+            Py_XDECREF(type);
+            Py_XDECREF(value);
+            Py_XDECREF(trace);
+        } else {
+            PyErr_Restore(type, value, trace);
+        }
+    }
+    Py_XDECREF(append);
     Py_XDECREF(buffer);
     Py_XDECREF(last_frame);
     Py_XDECREF(last_reply);
