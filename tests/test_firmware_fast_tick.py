@@ -266,3 +266,30 @@ def test_run_ticks_runs_the_ticks_due_by_the_deadline_as_one_at_a_time(deadline_
     assert engines[0].take() == engines[1].take()
     assert _state(fast) == _state(slow) and fast.tick == ran
     assert calls == [1] + ([ran - 1] if ran > 1 else [])  # (the first: 0 done, in Python)
+
+
+def test_a_subclass_that_changes_what_the_c_paths_stand_for_keeps_its_python_paths():
+    """A class attribute named as one the C tick writes (a property would not see it), an
+    own advance (advance_ticks would skip it), an own SETPOINT handler: those C paths off."""
+    guard = load_robot("guard")
+
+    class Shadowing(FirmwareEmulator):
+        status = property(lambda self: 0, lambda self, value: None)
+
+    class OwnAdvance(FirmwareEmulator):
+        def advance(self) -> None:
+            super().advance()
+
+    class OwnHandler(FirmwareEmulator):
+        _HANDLERS = {**FirmwareEmulator._HANDLERS, "Setpoint": lambda self, frame: None}
+
+    kinds = {}
+    for cls in (FirmwareEmulator, Shadowing, OwnAdvance, OwnHandler):
+        fw = cls(guard, WavyPlant())
+        kinds[cls.__name__] = [x is not None for x in (fw._tick_c, fw._ticks_c, fw._setpoints_c)]
+    assert kinds == {
+        "FirmwareEmulator": [True, True, True],
+        "Shadowing": [False, False, False],
+        "OwnAdvance": [True, False, True],
+        "OwnHandler": [True, True, False],
+    }

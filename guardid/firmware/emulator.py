@@ -77,6 +77,7 @@ _C_STATE = (
     "decimation", "encoder", "_telemetry_cfg", "_out", "counts", "status", "_last_frame",
     "_last_reply",
 )  # fmt: skip
+_PID_STATE = ("limit_mv", "kp", "ki", "kd", "integral", "prev_error", "saturated")
 SETPOINT_DEPTH = 8  #: setpoints buffered ahead of their tick
 DEFAULT_WATCHDOG_MS = 250
 FIRMWARE_ID = 0x47554131  #: "GUA1", the emulators (Python and the C core in the loop)
@@ -189,12 +190,12 @@ class FirmwareEmulator:
         self._pid_pwm = fast.pid_pwm if fast is not None and fits else None
         self._telemetry_c = fast.telemetry if fast is not None and fits else None
         # the whole position-mode tick and the queueing of setpoints in C (fw_tick,
-        # fw_setpoints: tests/test_firmware_fast.py), with the constants they compare with;
-        # they read and write the attributes in the instances' __dict__: only while no class
-        # attribute has one of their names (and SETPOINT, SETPOINT_FF go to these handlers)
-        own = not any(hasattr(type(self), a) for a in _C_STATE) and not any(
-            hasattr(type(x), a) for x, a in [(self.encoder, "seq"), *((p, "kp") for p in self.pids)]
-        )
+        # fw_setpoints: tests/test_firmware_fast_tick.py), with the constants they compare
+        # with; they read and write the attributes in the instances' __dict__: only while no
+        # class attribute has one of their names (and SETPOINT, SETPOINT_FF go to these
+        # handlers)
+        owners = [(self, _C_STATE), (self.encoder, ("seq",)), *((p, _PID_STATE) for p in self.pids)]
+        own = not any(hasattr(type(x), a) for x, names in owners for a in names)
         handlers = [self._HANDLERS.get(k) for k in ("Setpoint", "SetpointFf")]
         plain = handlers == [FirmwareEmulator._on_setpoint, FirmwareEmulator._on_setpoint_ff]
         self._tick_c = fast.fw_tick if fast is not None and fits and own else None
