@@ -1059,18 +1059,13 @@ static PyObject *py_fw_setpoints(PyObject *self, PyObject *args)
         done = i + 1;
     }
 out:
-    if (done > start) { /* the last frame queued is the previous host frame, unanswered */
-        PyObject *type, *value, *trace;
-        PyErr_Fetch(&type, &value, &trace);
-        if (set_attr(emu, s_last_frame, PyList_GET_ITEM(frames, done - 1)) ||
-            set_attr(emu, s_last_reply, Py_None)) {
+    if (!failed) {
+        PyErr_Clear(); /* a value this path does not take: the Python path meets it */
+        /* the last frame queued is the previous host frame, unanswered (after an error
+           raised, the frames before it stay queued, as the handlers leave them) */
+        if (done > start && (set_attr(emu, s_last_frame, PyList_GET_ITEM(frames, done - 1)) ||
+                             set_attr(emu, s_last_reply, Py_None)))
             failed = 1;
-            Py_XDECREF(type);
-            Py_XDECREF(value);
-            Py_XDECREF(trace);
-        } else {
-            PyErr_Restore(type, value, trace);
-        }
     }
     Py_XDECREF(append);
     Py_XDECREF(buffer);
@@ -1078,7 +1073,6 @@ out:
     Py_XDECREF(last_reply);
     if (failed)
         return NULL;
-    PyErr_Clear(); /* a value this path does not take: the Python path meets it */
     return PyLong_FromSsize_t(done);
 }
 
