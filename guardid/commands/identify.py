@@ -168,6 +168,17 @@ _EQUATION_HELP = (
 )
 
 
+_QUANTISATION_HELP = (
+    "In the momentum form, remove the encoder rounding's noise in the regressor's columns "
+    "from LS's and WLS's normal equations (bias-compensated least squares; the noise's "
+    "moments estimated by adding fresh rounding errors to the counts): without it the "
+    "quantised velocities bias them by an amount that does not shrink with the log "
+    "[default: on when every joint has an encoder in the robot description and the log's "
+    "positions are whole counts of it; --quantisation-compensation: an error when it "
+    "cannot]. Recorded in params.yaml (conditioning.quantisation)."
+)
+
+
 class _MethodOption(click.Option):
     """--method: its help lists the registered estimators when shown (plugins included)."""
 
@@ -186,6 +197,10 @@ class _MethodOption(click.Option):
 @click.option(
     "--equation", type=click.Choice(["momentum", "acceleration"]), default=None,
     help=_EQUATION_HELP,
+)  # fmt: skip
+@click.option(
+    "--quantisation-compensation/--no-quantisation-compensation", "quantisation", default=None,
+    help=_QUANTISATION_HELP,
 )  # fmt: skip
 @click.option("--beta", type=_POSITIVE, default=0.01, show_default=True, help="Hopfield gain beta.")
 @click.option(
@@ -238,8 +253,8 @@ class _MethodOption(click.Option):
 )
 @_foreign_options
 def identify(
-    log, robot, method, cutoff, equation, beta, lam, eta, current_units, output, plot_path,
-    report_path, parallel_hz, consistent, bootstrap_k, cv, force, **foreign,
+    log, robot, method, cutoff, equation, quantisation, beta, lam, eta, current_units, output,
+    plot_path, report_path, parallel_hz, consistent, bootstrap_k, cv, force, **foreign,
 ):  # fmt: skip
     """Identify the robot's base parameters and motor constants from LOG [LOG ...].
 
@@ -280,7 +295,7 @@ def identify(
 
     methods_for(methods)  # an unknown method is an option error, before any log is named
     conditioning = ConditioningOptions(cutoff_hz=cutoff, parallel_filter_hz=parallel_hz,
-                                       equation=equation)  # fmt: skip
+                                       equation=equation, quantisation=quantisation)  # fmt: skip
     options = IdentifyOptions(
         methods=methods, conditioning=conditioning, hopfield=HopfieldSettings(beta=beta),
         rls_lambda=lam, gradient_eta=eta, in_current_units=current_units,
