@@ -20,7 +20,6 @@ from guardid.conditioning import momentum as mom
 from guardid.conditioning.options import ConditioningOptions
 from guardid.conditioning.units import counts_per_joint_rev
 from guardid.dynamics import build_model
-from guardid.errors import GuardidError
 from guardid.estimators import ColumnNoise, LeastSquares, WeightedLeastSquares
 from guardid.identify.rows import drive_gain, stacked_rows
 from guardid.robot import load_robot
@@ -52,10 +51,10 @@ def test_compensated_ls_removes_the_errors_in_variables_bias():
     want = (theta[0] + 0.5 * 0.25) / 1.25  # attenuated, plus kappa's share
     assert plain.theta_[0] == pytest.approx(want, abs=0.02)
     assert not plain.compensated_
-    comp = LeastSquares().fit(A, y, noise)
+    comp = LeastSquares(noise).fit(A, y)
     assert comp.compensated_
     assert np.abs(comp.theta_ - theta).max() < 0.03
-    no_cross = LeastSquares().fit(A, y, ColumnNoise(noise.gram, np.zeros((2, 2))))
+    no_cross = LeastSquares(ColumnNoise(noise.gram, np.zeros((2, 2)))).fit(A, y)
     assert no_cross.theta_[0] == pytest.approx(theta[0] + 0.5 * 0.25, abs=0.03)
 
 
@@ -67,7 +66,7 @@ def test_compensated_wls_weights_the_noise_per_output_and_its_std_holds():
     for seed in range(150):
         rng = np.random.default_rng(100 + seed)
         theta, A, y, noise = _eiv(rng, m=600, s2=0.3, scale=(1.0, 2.0))
-        w = WeightedLeastSquares().fit(A, y, noise)
+        w = WeightedLeastSquares(column_noise=noise).fit(A, y)
         assert w.compensated_
         est.append(w.theta_)
         std.append(w.std_)
@@ -86,7 +85,7 @@ def test_a_noise_larger_than_the_rows_leaves_the_plain_estimate():
     rng = np.random.default_rng(5)
     _, A, y, noise = _eiv(rng)
     huge = ColumnNoise(noise.gram * 100.0, noise.cross)
-    comp = LeastSquares().fit(A, y, huge)
+    comp = LeastSquares(huge).fit(A, y)
     assert not comp.compensated_
     np.testing.assert_allclose(comp.theta_, LeastSquares().fit(A, y).theta_, rtol=1e-10)
 
@@ -163,8 +162,8 @@ def _rows(desc, q, t, **options):
 def test_rows_compensate_only_what_the_log_allows():
     """Every branch: whole counts -> compensated (recorded true); positions off the grid,
     measured velocities, a joint without an encoder -> not (recorded false, the reason in
-    the notes); --no-quantisation-compensation -> not; --quantisation-compensation where it
-    cannot -> one-line error naming why."""
+    the notes); --no-quantisation-compensation -> not; a recorded true (options reused on
+    another log) -> where that log allows."""
     desc, t, q, res = _swinging_run()
     r = _rows(desc, q, t)
     assert r.column_noise is not None and r.options.quantisation is True
@@ -174,8 +173,8 @@ def test_rows_compensate_only_what_the_log_allows():
     r = _rows(desc, off, t)
     assert r.column_noise is None and r.options.quantisation is False
     assert any("off the encoder's grid" in n for n in r.cond.notes)
-    with pytest.raises(GuardidError, match="off the encoder's grid"):
-        _rows(desc, off, t, quantisation=True)
+    r = _rows(desc, off, t, quantisation=True)  # a params file's record: where it can
+    assert r.column_noise is None and r.options.quantisation is False
     r = _rows(desc, q, t, quantisation=False)
     assert r.column_noise is None and r.options.quantisation is False
     measured = stacked_rows([(t, q, np.zeros_like(q), np.gradient(q, t, axis=0))], desc,

@@ -169,13 +169,13 @@ _EQUATION_HELP = (
 
 
 _QUANTISATION_HELP = (
-    "In the momentum form, remove the encoder rounding's noise in the regressor's columns "
-    "from LS's and WLS's normal equations (bias-compensated least squares; the noise's "
-    "moments estimated by adding fresh rounding errors to the counts): without it the "
-    "quantised velocities bias them by an amount that does not shrink with the log "
-    "[default: on when every joint has an encoder in the robot description and the log's "
-    "positions are whole counts of it; --quantisation-compensation: an error when it "
-    "cannot]. Recorded in params.yaml (conditioning.quantisation)."
+    "Leave the encoder's rounding uncompensated. By default, in the momentum form, the "
+    "rounding's noise in the regressor's columns is removed from LS's and WLS's normal "
+    "equations (bias-compensated least squares; its moments estimated by adding fresh "
+    "rounding errors to the counts): without that the quantised velocities bias them by an "
+    "amount that does not shrink with the log. It is on when every joint has an encoder in "
+    "the robot description and the log's positions are whole counts of it. Recorded in "
+    "params.yaml (conditioning.quantisation: what was done)."
 )
 
 
@@ -199,8 +199,7 @@ class _MethodOption(click.Option):
     help=_EQUATION_HELP,
 )  # fmt: skip
 @click.option(
-    "--quantisation-compensation/--no-quantisation-compensation", "quantisation", default=None,
-    help=_QUANTISATION_HELP,
+    "--no-quantisation-compensation", "no_quantisation", is_flag=True, help=_QUANTISATION_HELP,
 )  # fmt: skip
 @click.option("--beta", type=_POSITIVE, default=0.01, show_default=True, help="Hopfield gain beta.")
 @click.option(
@@ -253,7 +252,7 @@ class _MethodOption(click.Option):
 )
 @_foreign_options
 def identify(
-    log, robot, method, cutoff, equation, quantisation, beta, lam, eta, current_units, output,
+    log, robot, method, cutoff, equation, no_quantisation, beta, lam, eta, current_units, output,
     plot_path, report_path, parallel_hz, consistent, bootstrap_k, cv, force, **foreign,
 ):  # fmt: skip
     """Identify the robot's base parameters and motor constants from LOG [LOG ...].
@@ -295,7 +294,8 @@ def identify(
 
     methods_for(methods)  # an unknown method is an option error, before any log is named
     conditioning = ConditioningOptions(cutoff_hz=cutoff, parallel_filter_hz=parallel_hz,
-                                       equation=equation, quantisation=quantisation)  # fmt: skip
+                                       equation=equation,
+                                       quantisation=False if no_quantisation else None)  # fmt: skip
     options = IdentifyOptions(
         methods=methods, conditioning=conditioning, hopfield=HopfieldSettings(beta=beta),
         rls_lambda=lam, gradient_eta=eta, in_current_units=current_units,

@@ -51,8 +51,8 @@ class ConditioningOptions:
         :func:`guardid.conditioning.momentum.quantisation_noise`): without it they carry a
         bias of the noise's size however long the log; None = when every joint has an
         encoder in the robot description and the log's positions lie on its grid (whole
-        counts), True = required (an error when it cannot), False = off. A params file
-        records what was done (true or false).
+        counts), True = the same (what a params file records when it was done: the options
+        reused on another log compensate where that log allows), False = off.
     """
 
     cutoff_hz: float | None = None

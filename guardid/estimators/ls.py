@@ -5,7 +5,7 @@ Batch solve by Householder QR of the stacked regressor (never the normal equatio
 updated by a QR of [R; A_k] (p + n_out rows), so the online path is as well conditioned as
 the batch one and costs O(p^3) per sample.
 
-Errors in the regressor (``fit(..., column_noise=)``, :class:`ColumnNoise`): when the
+Errors in the regressor (``column_noise=``, :class:`ColumnNoise` of the rows to be fitted): when the
 columns carry a measurement noise dA of known second moments (e.g. an encoder's rounding
 differentiated into them), least squares is biased by E[dA^T dA] theta, a bias that does
 not shrink with the rows. Bias-compensated least squares removes the expected Gram from the
@@ -67,15 +67,16 @@ class LeastSquares(Estimator):
     (p,) 100 std / |theta| in %; ``cov_`` (p, p); ``cond_`` condition number of the
     (weighted) stacked A; ``residual_rms_`` rms of the residual over all rows (unit of y);
     ``residual_rms_per_output_`` (n_out,); ``n_rows_`` M; ``n_samples_`` N;
-    ``compensated_``: a ``column_noise`` given to ``fit`` was removed (module docstring;
+    ``compensated_``: the ``column_noise`` (:class:`ColumnNoise` of the rows ``fit`` is given,
+    or None) was removed (module docstring;
     False when none was given or when removing it would leave the normal matrix
     indefinite: then the plain estimate), and then ``cov_`` is the sandwich
     sigma^2 H^-1 A^T W^2 A H^-1 with H the compensated normal matrix.
     """
 
-    def __init__(self):
+    def __init__(self, column_noise: ColumnNoise | None = None):
+        self.column_noise = column_noise
         self._w = None  # per-output row weights (1 for OLS)
-        self._noise = None  # the ColumnNoise of the fit in progress
 
     # -- core on the weighted stacked system -------------------------------------------
     def _solve_augmented(self, aug: np.ndarray) -> None:
@@ -97,7 +98,7 @@ class LeastSquares(Estimator):
         """With a column noise: theta from the compensated normal equations, rss_ from it
         (||z - R theta||^2 + the QR's residual); the compensated normal matrix H, else None."""
         self.compensated_ = False
-        noise = self._noise
+        noise = self.column_noise
         if noise is None:
             return None
         w2 = np.asarray(self._w, dtype=float) ** 2
@@ -141,11 +142,9 @@ class LeastSquares(Estimator):
         with np.errstate(divide="ignore", invalid="ignore"):
             self.rel_std_ = 100.0 * self.std_ / np.abs(self.theta_)
 
-    def fit(self, A, y, column_noise: ColumnNoise | None = None):
-        """Fit on A (N, n_out, p) / y (N, n_out) or stacked A (M, p) / y (M,);
-        ``column_noise``: the columns' measurement noise to remove (module docstring)."""
+    def fit(self, A, y):
+        """Fit on A (N, n_out, p) / y (N, n_out) or stacked A (M, p) / y (M,)."""
         A3, y2 = as_blocks(A, y)
-        self._noise = column_noise
         N, n, p = A3.shape
         self.n_samples_ = N
         w = np.ones(n) if self._w is None or self._w.shape != (n,) else self._w
@@ -204,15 +203,15 @@ class WeightedLeastSquares(LeastSquares):
     the OLS pass.
     """
 
-    def __init__(self, n_iter: int = 1):
-        super().__init__()
+    def __init__(self, n_iter: int = 1, column_noise: ColumnNoise | None = None):
+        super().__init__(column_noise)
         self.n_iter = int(n_iter)
 
-    def fit(self, A, y, column_noise: ColumnNoise | None = None):
+    def fit(self, A, y):
         A3, y2 = as_blocks(A, y)
         N, n, p = A3.shape
         self._w = np.ones(n)
-        super().fit(A3, y2, column_noise)
+        super().fit(A3, y2)
         p_j = np.count_nonzero(np.any(A3 != 0, axis=0), axis=1)
         rows_j = np.count_nonzero(np.any(A3 != 0, axis=2) | (y2 != 0), axis=0)  # not all-zero
         dof = np.maximum(rows_j - p_j, 1)
@@ -222,5 +221,5 @@ class WeightedLeastSquares(LeastSquares):
             sig = np.where(sig > 0, sig, max(float(sig.max()), 1e-300))
             self.sigma_per_output_ = sig
             self.weights_ = self._w = 1.0 / sig
-            super().fit(A3, y2, column_noise)
+            super().fit(A3, y2)
         return self

@@ -182,7 +182,7 @@ class WLS(Method):
         from guardid.estimators import WeightedLeastSquares
 
         noise = getattr(rows.rows, "column_noise", None)
-        return MethodFit.of(WeightedLeastSquares().fit(rows.A, rows.y, noise))
+        return MethodFit.of(WeightedLeastSquares(column_noise=noise).fit(rows.A, rows.y))
 
 
 @register("bls")

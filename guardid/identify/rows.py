@@ -607,8 +607,9 @@ def quantisation_noise_of(cond, rest, description, options, model, free, base, g
     """(S (n, b', b'), c (n, b')) of one run's momentum rows (:func:`mom.quantisation_noise`
     on the identified columns; ``base`` (b,) the description's base values when the fixed
     columns' part was taken off y, else None), or a string saying why there is none:
-    ``options.quantisation`` False, measured velocities, a joint without an encoder, or
-    positions off the encoder's grid (not whole counts: the rounding is not that one)."""
+    ``options.quantisation`` False (True, as None: where the log allows), measured
+    velocities, a joint without an encoder, or positions off the encoder's grid (not whole
+    counts: the rounding is not that one)."""
     if options.quantisation is False:
         return "off (--no-quantisation-compensation)"
     why = ""
@@ -623,8 +624,6 @@ def quantisation_noise_of(cond, rest, description, options, model, free, base, g
             names = ", ".join(description.joints[j].name for j in np.flatnonzero(off))
             why = f"positions of {names} off the encoder's grid"
     if why:
-        if options.quantisation:
-            raise GuardidError(f"--quantisation-compensation: cannot ({why})")
         return why
     damping = mom.electrical_damping(description, gain)
     S, c = mom.quantisation_noise(cond.momentum, model, res, damping)
