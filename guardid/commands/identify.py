@@ -168,6 +168,17 @@ _EQUATION_HELP = (
 )
 
 
+_QUANTISATION_HELP = (
+    "Leave the encoder's rounding uncompensated. By default, in the momentum form, the "
+    "rounding's noise in the regressor's columns is removed from LS's and WLS's normal "
+    "equations (bias-compensated least squares; its moments estimated by adding fresh "
+    "rounding errors to the counts): without that the quantised velocities bias them by an "
+    "amount that does not shrink with the log. It is on when every joint has an encoder in "
+    "the robot description and the log's positions are whole counts of it. Recorded in "
+    "params.yaml (conditioning.quantisation: what was done)."
+)
+
+
 class _MethodOption(click.Option):
     """--method: its help lists the registered estimators when shown (plugins included)."""
 
@@ -186,6 +197,9 @@ class _MethodOption(click.Option):
 @click.option(
     "--equation", type=click.Choice(["momentum", "acceleration"]), default=None,
     help=_EQUATION_HELP,
+)  # fmt: skip
+@click.option(
+    "--no-quantisation-compensation", "no_quantisation", is_flag=True, help=_QUANTISATION_HELP,
 )  # fmt: skip
 @click.option("--beta", type=_POSITIVE, default=0.01, show_default=True, help="Hopfield gain beta.")
 @click.option(
@@ -238,8 +252,8 @@ class _MethodOption(click.Option):
 )
 @_foreign_options
 def identify(
-    log, robot, method, cutoff, equation, beta, lam, eta, current_units, output, plot_path,
-    report_path, parallel_hz, consistent, bootstrap_k, cv, force, **foreign,
+    log, robot, method, cutoff, equation, no_quantisation, beta, lam, eta, current_units, output,
+    plot_path, report_path, parallel_hz, consistent, bootstrap_k, cv, force, **foreign,
 ):  # fmt: skip
     """Identify the robot's base parameters and motor constants from LOG [LOG ...].
 
@@ -280,7 +294,8 @@ def identify(
 
     methods_for(methods)  # an unknown method is an option error, before any log is named
     conditioning = ConditioningOptions(cutoff_hz=cutoff, parallel_filter_hz=parallel_hz,
-                                       equation=equation)  # fmt: skip
+                                       equation=equation,
+                                       quantisation=False if no_quantisation else None)  # fmt: skip
     options = IdentifyOptions(
         methods=methods, conditioning=conditioning, hopfield=HopfieldSettings(beta=beta),
         rls_lambda=lam, gradient_eta=eta, in_current_units=current_units,

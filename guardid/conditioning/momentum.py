@@ -611,3 +611,88 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
         dropped, joint_mask=jm, equation="momentum", momentum=state,
     )  # fmt: skip
     return cond, A, y
+
+
+QUANTISATION_DRAWS = 2
+"""Independent draws of the encoder's rounding error per window (:func:`quantisation_noise`)
+[-]."""
+QUANTISATION_WINDOW_TICKS = 2048
+"""Ticks per window of :func:`quantisation_noise` [-]."""
+QUANTISATION_WINDOWS = 8
+"""At most this many windows, evenly spread over the run (all of a shorter run) [-]: the
+noise's moments are estimated from at most 16 384 ticks x 2 draws (rows enough for a few %
+on every moment), so the cost does not grow with the log."""
+QUANTISATION_SEED = 0
+"""The draws' seed: the same log gives the same estimate [-]."""
+
+
+def on_grid(q, resolution) -> np.ndarray:
+    """(n,) bool: joint j's positions lie on a grid of ``resolution`` (n,) [rad | m] steps
+    (whole encoder counts from any offset): every one within 1 % of a step of it."""
+    r = np.asarray(q, dtype=float) / np.asarray(resolution, dtype=float)
+    if not len(r):
+        return np.zeros(r.shape[1], dtype=bool)
+    off = (r - r[:1] + 0.5) % 1.0 - 0.5  # whole steps from the first position
+    return np.all(np.abs(off) <= 0.01, axis=0)
+
+
+def quantisation_noise(state: MomentumState, model, resolution, damping, *,
+                       draws: int = QUANTISATION_DRAWS,
+                       window_ticks: int = QUANTISATION_WINDOW_TICKS,
+                       windows: int = QUANTISATION_WINDOWS,
+                       seed: int = QUANTISATION_SEED):  # fmt: skip
+    """The columns' noise from the encoder's rounding, on the run's rows (``state``): (S (n,
+    b, b) with S_j = E[dA_j^T dA_j], c (n, b) with c_j = E[dA_j^T dy_j], both summed over
+    joint j's usable rows) [in the units of A^T A and A^T y of :func:`condition_momentum`'s
+    rows], b all base columns of ``model``.
+
+    The rows' positions are whole counts: q = q_true + e, e uniform over a step
+    ``resolution`` (n,) [rad | m] and independent from tick to tick where the joint moves
+    (slower ticks are cut). That e runs through the velocity stencil into the momentum,
+    Coriolis and friction columns (and, through the back-EMF slope term with ``damping``
+    (n,) D [torque units x s/rad], into y): errors in the variables, which bias least
+    squares by about S theta however long the log. The moments are estimated by adding
+    fresh draws of such e to the counts and forming the rows again (their difference is
+    the noise, to first order in e: the stencils and filter are linear, the rest smooth),
+    on ``windows`` windows of ``window_ticks`` ticks evenly spread over the run (each cut
+    at its ends like a gap), scaled per joint by the run's usable rows over the windows'."""
+    q, valid = state.q, state.valid
+    n_t, n = q.shape
+    res = np.asarray(resolution, dtype=float)
+    damping = np.asarray(damping, dtype=float)
+    n_b = model.base.B.shape[1]
+    S, c = np.zeros((n, n_b, n_b)), np.zeros((n, n_b))
+    counted = np.zeros(n)
+    rng = np.random.default_rng(seed)
+    width = min(int(window_ticks), n_t)
+    count = max(1, min(int(windows), n_t // max(width, 1)))
+    starts = np.linspace(0, n_t - width, count).round().astype(int)
+    edge = HALO_TICKS  # a window's first and last ticks: the stencils leave it there
+    for a in starts.tolist():
+        b = a + width
+        q_w = q[a:b]
+        valid_w = valid[a:b].copy()
+        valid_w[:edge] = False
+        valid_w[-edge:] = False
+        at = (state.rows >= a) & (state.rows < b)
+        rows_w = state.rows[at] - a
+        mask_w = state.row_mask[at]
+        v_w = tick_velocity(q_w, state.dt, state.points)[0]
+        base = period_regressor(model, q_w, v_w, state.dt, state.kink)
+        for _ in range(int(draws)):
+            q_e = q_w + (rng.random(q_w.shape) - 0.5) * res
+            v_e = tick_velocity(q_e, state.dt, state.points)[0]
+            d_phi = period_regressor(model, q_e, v_e, state.dt, state.kink) - base
+            d_imp = np.zeros_like(q_w)
+            if state.kink:
+                d_imp = -damping * slope_term(v_e - v_w, state.dt, state.kink)
+            dA, dy, good, _ = filtered_rows([(0, width, d_phi)], d_imp, valid_w, state.sos,
+                                            state.skip, rows_w, n_b)  # fmt: skip
+            good &= mask_w
+            dA = dA * good[:, :, None] / state.dt
+            dy = dy * good / state.dt
+            S += np.einsum("mja,mjb->jab", dA, dA) / draws
+            c += np.einsum("mja,mj->ja", dA, dy) / draws
+        counted += good.sum(axis=0)
+    scale = np.where(counted > 0, state.row_mask.sum(axis=0) / np.maximum(counted, 1), 0.0)
+    return S * scale[:, None, None], c * scale[:, None]

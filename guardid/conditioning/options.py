@@ -46,6 +46,13 @@ class ConditioningOptions:
         tick grid (guardid logs), acceleration otherwise (measured torque, uneven time
         stamps, a parallel or friction filter asked for, a model other than a serial chain).
         A params file written before this field existed is read as "acceleration".
+    quantisation : in the momentum form, remove the encoder rounding's noise in the columns
+        from LS's and WLS's normal equations (bias-compensated least squares,
+        :func:`guardid.conditioning.momentum.quantisation_noise`): without it they carry a
+        bias of the noise's size however long the log; None = when every joint has an
+        encoder in the robot description and the log's positions lie on its grid (whole
+        counts), True = the same (what a params file records when it was done: the options
+        reused on another log compensate where that log allows), False = off.
     """
 
     cutoff_hz: float | None = None
@@ -58,6 +65,7 @@ class ConditioningOptions:
     edge_s: float | None = None
     friction_filter: bool | None = None
     equation: str | None = None
+    quantisation: bool | None = None
 
     def __post_init__(self):
         if self.equation is not None and self.equation not in EQUATIONS:
@@ -98,7 +106,7 @@ class ConditioningOptions:
                                       f"got {value!r}")  # fmt: skip
                 out[key] = value
                 continue
-            if key in ("flat_is_stuck", "friction_filter"):
+            if key in ("flat_is_stuck", "friction_filter", "quantisation"):
                 if not isinstance(value, bool):
                     raise ConfigError(f"{where}.{key}: expected true or false, got {value!r}")
                 out[key] = value

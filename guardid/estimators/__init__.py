@@ -6,12 +6,13 @@ and ``update(A_k, y_k)``; learned state in ``theta_`` and friends (see each clas
 
 from .gradient import Gradient
 from .hopfield import Hopfield
-from .ls import LeastSquares, WeightedLeastSquares
+from .ls import ColumnNoise, LeastSquares, WeightedLeastSquares
 from .metrics import d_tau, d_theta
 from .mlp import MLP
 from .rls import RLS
 
 __all__ = [
+    "ColumnNoise",
     "MLP",
     "RLS",
     "Gradient",

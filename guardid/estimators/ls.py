@@ -4,14 +4,36 @@ Batch solve by Householder QR of the stacked regressor (never the normal equatio
 ``update`` keeps the square-root information form: the triangular factor R and z = Q^T y are
 updated by a QR of [R; A_k] (p + n_out rows), so the online path is as well conditioned as
 the batch one and costs O(p^3) per sample.
+
+Errors in the regressor (``column_noise=``, :class:`ColumnNoise` of the rows to be fitted): when the
+columns carry a measurement noise dA of known second moments (e.g. an encoder's rounding
+differentiated into them), least squares is biased by E[dA^T dA] theta, a bias that does
+not shrink with the rows. Bias-compensated least squares removes the expected Gram from the
+normal equations: theta = (A^T W^2 A - sum_j w_j^2 S_j)^-1 (A^T W^2 y - sum_j w_j^2 c_j)
+(S_j = E[dA_j^T dA_j], c_j = E[dA_j^T dy_j] over output j's rows; Stoica & Soderstrom's
+bias-eliminating least squares with the noise moments given).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import get_lapack_funcs, qr, solve_triangular
 
 from ._base import Estimator, as_blocks, as_sample
+
+
+@dataclass(frozen=True)
+class ColumnNoise:
+    """Expected second moments of the regressor's measurement noise over the fitted rows:
+    ``gram`` (n_out, p, p) S_j = E[dA_j^T dA_j] and ``cross`` (n_out, p) c_j = E[dA_j^T dy_j]
+    (the noise's part in y correlated with it), summed over output j's rows, in the units of
+    A^T A and A^T y. ``what`` says where it comes from (for the notes)."""
+
+    gram: np.ndarray
+    cross: np.ndarray
+    what: str = ""
 
 
 def _split_rows(x: np.ndarray, shape) -> np.ndarray:
@@ -44,10 +66,16 @@ class LeastSquares(Estimator):
     sigma^2 (A^T A)^-1 with sigma^2 = ||r||^2 / (M - p) (same unit as theta); ``rel_std_``
     (p,) 100 std / |theta| in %; ``cov_`` (p, p); ``cond_`` condition number of the
     (weighted) stacked A; ``residual_rms_`` rms of the residual over all rows (unit of y);
-    ``residual_rms_per_output_`` (n_out,); ``n_rows_`` M; ``n_samples_`` N.
+    ``residual_rms_per_output_`` (n_out,); ``n_rows_`` M; ``n_samples_`` N;
+    ``compensated_``: the ``column_noise`` (:class:`ColumnNoise` of the rows ``fit`` is given,
+    or None) was removed (module docstring;
+    False when none was given or when removing it would leave the normal matrix
+    indefinite: then the plain estimate), and then ``cov_`` is the sandwich
+    sigma^2 H^-1 A^T W^2 A H^-1 with H the compensated normal matrix.
     """
 
-    def __init__(self):
+    def __init__(self, column_noise: ColumnNoise | None = None):
+        self.column_noise = column_noise
         self._w = None  # per-output row weights (1 for OLS)
 
     # -- core on the weighted stacked system -------------------------------------------
@@ -63,7 +91,29 @@ class LeastSquares(Estimator):
         self.z_ = Raug[:p, p]
         self._finish()
         self.rss_ = float(Raug[p, p] ** 2) if Raug.shape[0] > p else 0.0
-        self._stats()
+        H = self._compensate()
+        self._stats(H)
+
+    def _compensate(self):
+        """With a column noise: theta from the compensated normal equations, rss_ from it
+        (||z - R theta||^2 + the QR's residual); the compensated normal matrix H, else None."""
+        self.compensated_ = False
+        noise = self.column_noise
+        if noise is None:
+            return None
+        w2 = np.asarray(self._w, dtype=float) ** 2
+        R, z = self.R_, self.z_
+        G = R.T @ R
+        H = G - np.einsum("j,jab->ab", w2, np.asarray(noise.gram, dtype=float))
+        h = R.T @ z - w2 @ np.asarray(noise.cross, dtype=float)
+        try:
+            np.linalg.cholesky(H)
+        except np.linalg.LinAlgError:
+            return None  # the noise would take more than the rows hold: plain estimate
+        self.theta_ = np.linalg.solve(H, h)
+        self.rss_ += float(np.sum((z - R @ self.theta_) ** 2))
+        self.compensated_ = True
+        return H
 
     def _finish(self) -> None:
         R = self.R_
@@ -73,7 +123,7 @@ class LeastSquares(Estimator):
         else:
             self.theta_ = np.linalg.lstsq(R, self.z_, rcond=None)[0]
 
-    def _stats(self) -> None:
+    def _stats(self, H=None) -> None:
         p = self.R_.shape[1]
         dof = self.n_rows_ - p
         self.sigma2_ = self.rss_ / dof if dof > 0 else np.nan
@@ -84,6 +134,10 @@ class LeastSquares(Estimator):
         except np.linalg.LinAlgError:
             Rinv = np.full((p, p), np.nan)
         self.cov_ = self.sigma2_ * (Rinv @ Rinv.T)
+        if H is not None:  # the sandwich of the compensated estimate
+            Hinv = np.linalg.inv(H)
+            self.cov_ = self.sigma2_ * (Hinv @ (self.R_.T @ self.R_) @ Hinv)
+            self.cov_ = 0.5 * (self.cov_ + self.cov_.T)
         self.std_ = np.sqrt(np.diag(self.cov_))
         with np.errstate(divide="ignore", invalid="ignore"):
             self.rel_std_ = 100.0 * self.std_ / np.abs(self.theta_)
@@ -126,6 +180,7 @@ class LeastSquares(Estimator):
             self.rss_ += float(np.sum(Rfull[p:, p] ** 2))
         self.n_rows_ += n
         self.n_samples_ += 1
+        self.compensated_ = False  # a column noise covers the rows of its fit only
         self._finish()
         self._stats()
         # Exact for OLS; for WLS this is the rms of the weighted residual.
@@ -148,8 +203,8 @@ class WeightedLeastSquares(LeastSquares):
     the OLS pass.
     """
 
-    def __init__(self, n_iter: int = 1):
-        super().__init__()
+    def __init__(self, n_iter: int = 1, column_noise: ColumnNoise | None = None):
+        super().__init__(column_noise)
         self.n_iter = int(n_iter)
 
     def fit(self, A, y):

@@ -181,7 +181,8 @@ class WLS(Method):
     def fit(self, rows):
         from guardid.estimators import WeightedLeastSquares
 
-        return MethodFit.of(WeightedLeastSquares().fit(rows.A, rows.y))
+        noise = getattr(rows.rows, "column_noise", None)
+        return MethodFit.of(WeightedLeastSquares(column_noise=noise).fit(rows.A, rows.y))
 
 
 @register("bls")

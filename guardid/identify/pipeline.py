@@ -361,7 +361,8 @@ def _fit_rows(rows, runs, description, options, torque) -> FitRows:
     return FitRows(
         A=A, y=y, rows=rows, names=tuple(model.base.names[i] for i in free),
         nominal=model.base.values(model.params)[free],
-        dt=float(np.median(np.diff(cond.t[cond.mask]))), ls=LeastSquares().fit(A, y),
+        dt=float(np.median(np.diff(cond.t[cond.mask]))),
+        ls=LeastSquares(rows.column_noise).fit(A, y),
         runs=runs, description=description, model=model, free=free, options=options,
         effort_is_torque=torque,
     )  # fmt: skip

@@ -22,8 +22,10 @@ from guardid.conditioning.filters import (
 from guardid.conditioning.options import ConditioningOptions
 from guardid.conditioning.parallel import parallel_filter
 from guardid.conditioning.stiction import guard_periods
+from guardid.conditioning.units import counts_per_joint_rev
 from guardid.dynamics import ChainModel, build_model
 from guardid.errors import GuardidError
+from guardid.estimators import ColumnNoise
 from guardid.identify.cutoff import (
     MIN_BLOCKS,
     CutoffChoice,
@@ -73,7 +75,9 @@ class Rows:
     ``runs``: per run its own conditioned signals (the momentum form: what
     :func:`momentum_rows_of` needs); ``acceleration_rows``: the same runs in the
     acceleration form, made once when a method fits only in it (iv, didim:
-    :func:`guardid.identify.pipeline.closed_loop_rows`), else None.
+    :func:`guardid.identify.pipeline.closed_loop_rows`), else None; ``column_noise``: the
+    encoder rounding's noise in the identified columns of ``A`` and in ``y`` (the momentum
+    form, :func:`quantisation_noise_of`), which LS and WLS remove, else None.
     """
 
     cond: object
@@ -84,6 +88,7 @@ class Rows:
     warnings: list[str] = field(default_factory=list)
     runs: list = field(default_factory=list)
     acceleration_rows: Rows | None = None
+    column_noise: ColumnNoise | None = None
 
     def __iter__(self):  # (cond, A, y), as before
         return iter((self.cond, self.A, self.y))
@@ -570,7 +575,7 @@ def _momentum_rows(runs, description, options, model, free, in_current_units, ef
     flat = (not effort_is_torque) if options.flat_is_stuck is None else options.flat_is_stuck
     fixed = [i for i in range(len(model.base.names)) if i not in free]
     base = model.base.values(model.params)
-    conds, As, ys = [], [], []
+    conds, As, ys, noises = [], [], [], []
     for run in runs:
         t, q, effort, *rest = run
         cond, A_all, y = mom.condition_momentum(
@@ -581,15 +586,66 @@ def _momentum_rows(runs, description, options, model, free, in_current_units, ef
         if fixed and not in_current_units:
             y = y - A_all[:, :, fixed] @ base[fixed]
         m = cond.mask
+        noises.append(quantisation_noise_of(cond, rest, description, options, model, free,
+                                            base if fixed and not in_current_units else None,
+                                            gain))  # fmt: skip
         conds.append(cond)
         As.append(A_all[m][:, :, free])
         ys.append(y[m])
     A, y = _stacked(As, ys, free)
     joined = _join(conds)
     joined.notes.insert(0, reason)
+    noise, note = _noise_of_runs(noises)
+    joined.notes.append(note)
+    used = replace(used, quantisation=noise is not None)
     choice = CutoffChoice(float(cutoff), reason.split(": ", 1)[-1], [float(cutoff)])
     return Rows(joined, A, y, used, choice if options.cutoff_hz is None else None,
-                _doubts(conds, None), conds)  # fmt: skip
+                _doubts(conds, None), conds, column_noise=noise)  # fmt: skip
+
+
+def quantisation_noise_of(cond, rest, description, options, model, free, base, gain):
+    """(S (n, b', b'), c (n, b')) of one run's momentum rows (:func:`mom.quantisation_noise`
+    on the identified columns; ``base`` (b,) the description's base values when the fixed
+    columns' part was taken off y, else None), or a string saying why there is none:
+    ``options.quantisation`` False (True, as None: where the log allows), measured
+    velocities, a joint without an encoder, or positions off the encoder's grid (not whole
+    counts: the rounding is not that one)."""
+    if options.quantisation is False:
+        return "off (--no-quantisation-compensation)"
+    why = ""
+    if rest:
+        why = "the log's measured velocities are used"
+    elif any(j.encoder is None for j in description.joints):
+        why = "a joint without an encoder in the robot description"
+    else:
+        res = 2.0 * np.pi / counts_per_joint_rev(description)
+        off = ~mom.on_grid(cond.momentum.q, res)
+        if off.any():
+            names = ", ".join(description.joints[j].name for j in np.flatnonzero(off))
+            why = f"positions of {names} off the encoder's grid"
+    if why:
+        return why
+    damping = mom.electrical_damping(description, gain)
+    S, c = mom.quantisation_noise(cond.momentum, model, res, damping)
+    fixed = [i for i in range(S.shape[1]) if i not in free]
+    cross = c[:, free]
+    if base is not None and fixed:  # y less the fixed columns: their noise is in y
+        cross = cross - S[:, free][:, :, fixed] @ base[fixed]
+    return S[:, free][:, :, free], cross
+
+
+def _noise_of_runs(noises):
+    """(ColumnNoise summed over the runs or None, a note for the conditioning notes)."""
+    why = [n for n in noises if isinstance(n, str)]
+    if why:
+        return None, f"encoder quantisation not compensated: {why[0]}"
+    S = sum(n[0] for n in noises)
+    c = sum(n[1] for n in noises)
+    what = ("encoder quantisation compensated (bias-compensated LS and WLS): the rounding's "
+            f"noise in the columns estimated from {mom.QUANTISATION_DRAWS} draws on at most "
+            f"{mom.QUANTISATION_WINDOWS} windows of {mom.QUANTISATION_WINDOW_TICKS} ticks per "
+            "run")  # fmt: skip
+    return ColumnNoise(S, c, what), what
 
 
 def momentum_rows_of(rows: Rows, run: int, q, model, free) -> np.ndarray:
