@@ -613,15 +613,16 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
     return cond, A, y
 
 
-QUANTISATION_DRAWS = 2
+QUANTISATION_DRAWS = 1
 """Independent draws of the encoder's rounding error per window (:func:`quantisation_noise`)
-[-]."""
+[-]: one gives each moment to a few % over the rows of 16 384 ticks (the correction it
+scales is itself a fraction of a std), at two passes of the regressor per window."""
 QUANTISATION_WINDOW_TICKS = 2048
 """Ticks per window of :func:`quantisation_noise` [-]."""
 QUANTISATION_WINDOWS = 8
 """At most this many windows, evenly spread over the run (a run no longer than them all is
-one window) [-]: the noise's moments come from at most 16 384 ticks x 2 draws (rows enough
-for a few % on every moment), so the cost does not grow with the log."""
+one window) [-]: the noise's moments come from at most 16 384 ticks, so the cost does not
+grow with the log."""
 QUANTISATION_SEED = 0
 """The draws' seed: the same log gives the same estimate [-]."""
 
