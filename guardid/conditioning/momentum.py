@@ -613,15 +613,16 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
     return cond, A, y
 
 
-QUANTISATION_DRAWS = 2
+QUANTISATION_DRAWS = 1
 """Independent draws of the encoder's rounding error per window (:func:`quantisation_noise`)
-[-]."""
+[-]: one gives each moment to a few % over the rows of 16 384 ticks (the correction it
+scales is itself a fraction of a std), at two passes of the regressor per window."""
 QUANTISATION_WINDOW_TICKS = 2048
 """Ticks per window of :func:`quantisation_noise` [-]."""
 QUANTISATION_WINDOWS = 8
-"""At most this many windows, evenly spread over the run (all of a shorter run) [-]: the
-noise's moments are estimated from at most 16 384 ticks x 2 draws (rows enough for a few %
-on every moment), so the cost does not grow with the log."""
+"""At most this many windows, evenly spread over the run (a run no longer than them all is
+one window) [-]: the noise's moments come from at most 16 384 ticks, so the cost does not
+grow with the log."""
 QUANTISATION_SEED = 0
 """The draws' seed: the same log gives the same estimate [-]."""
 
@@ -664,8 +665,9 @@ def quantisation_noise(state: MomentumState, model, resolution, damping, *,
     S, c = np.zeros((n, n_b, n_b)), np.zeros((n, n_b))
     counted = np.zeros(n)
     rng = np.random.default_rng(seed)
-    width = min(int(window_ticks), n_t)
-    count = max(1, min(int(windows), n_t // max(width, 1)))
+    width, count = int(window_ticks), int(windows)
+    if n_t <= width * count:  # the whole run as one window
+        width, count = n_t, 1
     starts = np.linspace(0, n_t - width, count).round().astype(int)
     edge = HALO_TICKS  # a window's first and last ticks: the stencils leave it there
     for a in starts.tolist():
