@@ -9,7 +9,8 @@ resolved on the measured log) gives the reported std and the per-joint weights; 
 those weights fixed (so the estimate is linear in the effort), the rows of the same
 conditioning are fitted on:
 
-* ``meas``: the log (encoder angles, measured current): identify's own estimate;
+* ``meas``: the log (encoder angles, measured current): identify's own estimate (the
+  rounding's noise compensated as identify does by default, on every fit of the counts);
 * ``true i``: encoder angles, the true current: the quantisation's part;
 * ``true q``: true angles and current: the model's own error;
 * ``plant noise`` = meas - true i: the part of the current sensor's noise as the plant drew it;
@@ -55,25 +56,31 @@ def seed_parts(run, q_true, i_true, desc, truth, seed: int):
     std = ref.results["wls"].std
 
     def blocks(q, current):
-        _, A, y = stacked_rows([(run.t, q, current)], desc, ref.conditioning,
-                               in_current_units=False, effort_is_torque=False,
-                               highest_harmonic_hz=run.highest_harmonic_hz)  # fmt: skip
-        return as_blocks(A, y)
+        rows = stacked_rows([(run.t, q, current)], desc, ref.conditioning,
+                            in_current_units=False, effort_is_torque=False,
+                            highest_harmonic_hz=run.highest_harmonic_hz)  # fmt: skip
+        return (*as_blocks(rows.A, rows.y), rows.column_noise)
 
-    A3, y_meas = blocks(run.q, run.current)
-    w = WeightedLeastSquares().fit(A3, y_meas).weights_
+    A3, y_meas, noise = blocks(run.q, run.current)  # noise: the rounding's (identify's default)
+    w = WeightedLeastSquares(column_noise=noise).fit(A3, y_meas).weights_
 
-    def fit(A3, y2):
+    def fit(A3, y2, noise):
+        """The WLS estimate with the weights fixed (compensated like identify's when the
+        rows carry the rounding's noise): linear in y."""
         M = (A3 * w[None, :, None]).reshape(-1, A3.shape[2])
-        return np.linalg.lstsq(M, (y2 * w).reshape(-1), rcond=None)[0]
+        G, h = M.T @ M, M.T @ (y2 * w).reshape(-1)
+        if noise is not None:
+            G = G - np.einsum("j,jab->ab", w**2, noise.gram)
+            h = h - (w**2) @ noise.cross
+        return np.linalg.solve(G, h)
 
-    meas = fit(A3, y_meas)
+    meas = fit(A3, y_meas, noise)
     if not np.allclose(meas, ref.results["wls"].theta, rtol=1e-6, atol=1e-12):
         raise SystemExit("the fixed-weight fit does not reproduce identify's WLS")
-    true_i = fit(A3, blocks(run.q, i_true)[1])
-    true_q = fit(*blocks(q_true, i_true))
+    true_i = fit(A3, blocks(run.q, i_true)[1], noise)
+    true_q = fit(*blocks(q_true, i_true))  # true angles: off the encoder's grid, no noise
     noisy = i_true + np.random.default_rng(seed).normal(0.0, SENSOR_SIGMA_A, i_true.shape)
-    fresh = fit(A3, blocks(run.q, noisy)[1])
+    fresh = fit(A3, blocks(run.q, noisy)[1], noise)
     parts = (meas - tv, true_i - tv, true_q - tv, meas - true_i, fresh - true_i)
     return np.array(parts) / std, ref.names
 
