@@ -38,7 +38,12 @@ from guardid.conditioning.options import ConditioningOptions
 from guardid.dynamics import build_model
 from guardid.estimators import WeightedLeastSquares
 from guardid.estimators._base import as_blocks
-from guardid.identify.pipeline import IdentifyOptions, identify, stacked_rows
+from guardid.identify.pipeline import (
+    IdentifyOptions,
+    current_on_adc_levels,
+    identify,
+    stacked_rows,
+)
 from guardid.identify.runs import load_run
 from guardid.robot import load_robot
 
@@ -52,6 +57,7 @@ def seed_parts(run, q_true, i_true, desc, truth, seed: int):
     identified parameters' names)."""
     opts = IdentifyOptions(methods=("wls",), conditioning=ConditioningOptions(equation="momentum"))
     ref = identify([run], desc, opts)
+    run = current_on_adc_levels(run, desc)  # the current identify fits (its ADC's levels)
     tv = np.array([truth[n] for n in ref.names])
     std = ref.results["wls"].std
 
