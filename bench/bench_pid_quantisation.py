@@ -37,7 +37,11 @@ from guardid.firmware.pid import FixedPid
 from guardid.identify.pipeline import IdentifyOptions, identify
 from guardid.robot import load_robot
 
-EXCITATIONS = {"default": [], "schroeder": ["--kind", "schroeder"]}
+EXCITATIONS = {
+    "default": [],
+    "schroeder": ["--kind", "schroeder"],
+    "fast": ["--base-freq", "0.25", "--harmonics", "5"],  # bench_std_check's fast120
+}
 PORT = "start=50&supply=0.02&ripple=0.01"
 _RECORD = bias_sources._recording_step
 SCALE = 256

@@ -11,9 +11,10 @@ k-1 to tick k, is
 A guardid log's current at tick k is the mean over (t_(k-1), t_k] (the firmware's
 oversampling ADC; :mod:`guardid.firmware.emulator`, :meth:`guardid.plant.plant.Plant._measure`),
 so the impulse is gain x i_k x T exactly. The integral: viscous friction is
-Fv (q_k - q_(k-1)) exactly, sign-model Coulomb friction Fc T sign(q_k - q_(k-1)) (the joint
-moves the same way through the period: periods near a stop or reversal are cut), the offset
-Fo T, the rest (gravity, Coriolis, smooth friction shapes) by the four-point rule
+Fv (q_k - q_(k-1)) exactly, sign-model Coulomb friction Fc T d_k, d_k the direction of
+the motion through the period (:func:`period_direction`; the joint moves the same way
+through the period: periods near a stop or reversal are cut), the offset Fo T, the rest
+(gravity, Coriolis, smooth friction shapes) by the four-point rule
 T/24 (-f_(k-2) + 13 f_(k-1) + 13 f_k - f_(k+1)) (fourth order). Velocities at the ticks
 come from the raw positions by a central difference (three points); nothing is low-passed
 before the regressor. Logs of instantaneous torque samples: the impulse is the same
@@ -239,7 +240,21 @@ def electrical_damping(description, gain) -> np.ndarray:
     return out * (1.0 if gain is None else np.asarray(gain, dtype=float))
 
 
-def period_regressor(model, q, v, dt: float, kink_points: int | None = None) -> np.ndarray:
+def period_direction(q, v) -> np.ndarray:
+    """(N, n) the direction each joint moves through period k (from tick k-1 to tick k):
+    the sign of its count change, or, for a period without a count, of the velocities at
+    its two ticks (a joint that creeps under a count per period moves on between counts;
+    periods where it is stuck or turns are cut, :func:`slow_ticks`). Row 0 is 0."""
+    d = np.zeros_like(q)
+    d[1:] = np.sign(q[1:] - q[:-1])
+    flat = d == 0.0
+    flat[0] = False
+    d[flat] = np.sign(v[:-1] + v[1:])[flat[1:]]
+    return d
+
+
+def period_regressor(model, q, v, dt: float, kink_points: int | None = None,
+                     direction=None) -> np.ndarray:  # fmt: skip
     """Phi (N, n, b) base regressor of the period equations (module docstring): row k is the
     period ending at tick k (rows 0, 1 and N-1 are not defined and are zero).
 
@@ -249,6 +264,8 @@ def period_regressor(model, q, v, dt: float, kink_points: int | None = None) -> 
     the drive's is to the impulses: together the net torque's steps."""
     n_t, n = q.shape
     B = model.base.B
+    if direction is None:
+        direction = period_direction(q, v)
     exact = np.zeros((n_t, n, B.shape[1]))
     dq = np.zeros_like(q)
     dq[1:] = q[1:] - q[:-1]
@@ -261,7 +278,7 @@ def period_regressor(model, q, v, dt: float, kink_points: int | None = None) -> 
         exact[:, j, :] += dt * B[k + 2]  # offset: Fo T
         cols = [k, k + 2]
         if joint.friction.model == "sign":  # the joint moves one way through the period
-            exact[:, j, :] += np.outer(dt * np.sign(dq[:, j]), B[k + 1])
+            exact[:, j, :] += np.outer(dt * direction[:, j], B[k + 1])
             cols.append(k + 1)
         exact_cols.append((j, cols))
     p_mom, rest = np.empty_like(exact), np.empty_like(exact)
@@ -326,8 +343,9 @@ def _dilate(bad, before: int, after: int) -> np.ndarray:
 
 def flagged_ticks(q, v, dt, *, threshold, flat_is_stuck, position_limits, resolution=None):
     """(N, n) bool: ticks where a joint's equation does not hold nearby: |v| below
-    ``threshold`` (n,) [unit/s] (stuck, reversing), no count in the adjacent periods
-    (``flat_is_stuck``), or some joint at a position limit (:func:`at_stop`)."""
+    ``threshold`` (n,) [unit/s] (stuck, reversing), no count in either period next to a
+    tick (``flat_is_stuck``, :func:`slow_ticks`), or some joint at a position limit
+    (:func:`at_stop`)."""
     bad = slow_ticks(q, v, threshold=threshold, flat_is_stuck=flat_is_stuck)
     if position_limits is not None:
         bad |= at_stop(q, position_limits, resolution)[:, None]
@@ -336,13 +354,20 @@ def flagged_ticks(q, v, dt, *, threshold, flat_is_stuck, position_limits, resolu
 
 def slow_ticks(q, v, *, threshold, flat_is_stuck):
     """(N, n) bool: |v| below ``threshold`` (n,) [unit/s], a reversal of the count
-    direction, or (``flat_is_stuck``) no count in an adjacent period."""
+    direction, or (``flat_is_stuck``) no count in either period next to a tick (and the
+    ticks either side of it). One period without a count is not a stuck joint: a joint
+    that creeps at under a count per period has such periods while it moves, and cutting
+    them would choose rows by the rounding's phase (a selection that biased the friction
+    pair of a slowly moving joint by about 0.2 std, ``bench/bench_std_check.py --sets
+    fast120``); :func:`period_direction` gives them their direction. A joint stuck for
+    two periods or more has a tick with no count on either side."""
     bad = np.abs(v) < np.asarray(threshold, dtype=float)
     dq = np.diff(q, axis=0)
-    if flat_is_stuck:
-        flat = dq == 0.0
-        bad[1:] |= flat
-        bad[:-1] |= flat
+    if flat_is_stuck:  # no count in either period next to a tick: stuck there
+        still = (dq[:-1] == 0.0) & (dq[1:] == 0.0)
+        bad[:-2] |= still
+        bad[1:-1] |= still
+        bad[2:] |= still
     rev = np.sign(dq[1:]) * np.sign(dq[:-1]) < 0
     bad[1:-1] |= rev
     return bad
@@ -517,7 +542,8 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
     [A] (``effort_is_torque``: instantaneous torque samples [N m | N]); ``gain`` (n,) torque
     per effort unit or None (current units). ``stiction_threshold``: per joint [unit/s]
     (NaN: 5 % of the joint's peak speed; 0: never flagged by speed); ``flat_is_stuck``: a
-    period without an encoder count flags its ticks; ``position_limits`` (n, 2) or None.
+    tick without an encoder count in either adjacent period flags it (:func:`slow_ticks`);
+    ``position_limits`` (n, 2) or None.
     ``velocity`` (N, n) [unit/s]: measured joint velocities, used instead of the difference
     stencil (``points``: 3, or 5; default 3 with its corrections for a period-mean current,
     5 for torque samples, whose motion is smooth).
@@ -641,7 +667,7 @@ def quantisation_noise(state: MomentumState, model, resolution, damping, *,
                        draws: int = QUANTISATION_DRAWS,
                        window_ticks: int = QUANTISATION_WINDOW_TICKS,
                        windows: int = QUANTISATION_WINDOWS,
-                       seed: int = QUANTISATION_SEED):  # fmt: skip
+                       seed: int = QUANTISATION_SEED, trajectory=None):  # fmt: skip
     """The columns' noise from the encoder's rounding, on the run's rows (``state``): (S (n,
     b, b) with S_j = E[dA_j^T dA_j], c (n, b) with c_j = E[dA_j^T dy_j], both summed over
     joint j's usable rows) [in the units of A^T A and A^T y of :func:`condition_momentum`'s
@@ -672,7 +698,7 @@ def quantisation_noise(state: MomentumState, model, resolution, damping, *,
     edge = HALO_TICKS  # a window's first and last ticks: the stencils leave it there
     for a in starts.tolist():
         b = a + width
-        q_w = q[a:b]
+        q_w = q[a:b] if trajectory is None else trajectory[a:b]
         valid_w = valid[a:b].copy()
         valid_w[:edge] = False
         valid_w[-edge:] = False
@@ -680,11 +706,16 @@ def quantisation_noise(state: MomentumState, model, resolution, damping, *,
         rows_w = state.rows[at] - a
         mask_w = state.row_mask[at]
         v_w = tick_velocity(q_w, state.dt, state.points)[0]
-        base = period_regressor(model, q_w, v_w, state.dt, state.kink)
+        way = period_direction(q_w, v_w)  # the rounding does not turn the joint
+        base = period_regressor(model, q_w, v_w, state.dt, state.kink, way)
         for _ in range(int(draws)):
-            q_e = q_w + (rng.random(q_w.shape) - 0.5) * res
+            if trajectory is None:
+                q_e = q_w + (rng.random(q_w.shape) - 0.5) * res
+            else:
+                phi = rng.random(q_w.shape[1]) * res
+                q_e = res * np.round((q_w + phi) / res) - phi
             v_e = tick_velocity(q_e, state.dt, state.points)[0]
-            d_phi = period_regressor(model, q_e, v_e, state.dt, state.kink) - base
+            d_phi = period_regressor(model, q_e, v_e, state.dt, state.kink, way) - base
             d_imp = np.zeros_like(q_w)
             if state.kink:
                 d_imp = -damping * slope_term(v_e - v_w, state.dt, state.kink)

@@ -29,7 +29,8 @@ class ConditioningOptions:
         holding 95 % of the low-pass's impulse response for guardid logs (stick/slip; 1.04
         cut-off periods at order 4, :data:`guardid.identify.rows.STICTION_GUARD_SHARE`), 0
         for measured-torque logs.
-    flat_is_stuck : flag samples without an encoder count in the period; None = guardid logs.
+    flat_is_stuck : flag samples without an encoder count in the period (momentum form: in
+        either period next to the sample); None = guardid logs.
     parallel_filter_hz : Gautier's parallel filter on the regressor and the torque [Hz];
         None = off.
     order : Butterworth order; None = by equation form: 4 for "acceleration" (applied forward
