@@ -56,7 +56,9 @@ change). Costs one p x p solve per sample.
 Online fast path (n_out = 2, float64 arrays): the same step with the work arrays kept
 between samples: Dm = diag(S^2 D) (p, p) is updated through a view of its diagonal, so
 M = A S D S A^T and A theta come from two small matrix products (A Dm, then A [A Dm ; theta]^T);
-the 2 x 2 solve is done in Python floats. ``fit_block=1`` with 2 outputs runs this path.
+the 2 x 2 solve is done in Python floats. ``fit_block=1`` with 2 outputs runs this path,
+in C when a compiler is at hand (:mod:`guardid.estimators.native_loops`, the same steps to
+round-off; ``GUARDID_NATIVE=0``: in Python).
 
 Measured (bench/bench_estimators.py, p = 12, n_out = 2, shared machine): online ``update``
 6.3-6.7 us/sample in the quieter passes (~3x faster than padasip's FilterRLS fed the same
@@ -73,6 +75,7 @@ from math import sqrt as _sqrt
 import numpy as np
 from scipy.linalg.lapack import dposv as _dposv
 
+from . import native_loops
 from ._base import Estimator, as_blocks, as_sample, checkpoints
 
 _SMAX = np.nextafter(1.0, 0.0)
@@ -394,7 +397,13 @@ class Hopfield(Estimator):
             )
             self.history_samples_ = checkpoints(self.n_samples_, k)
             return self
-        if self.lam is not None or (self.fit_block <= 1 and A3.shape[1] == 2):
+        lib = native_loops.kernel() if self.lam is None and A3.shape[1] == 2 else None
+        if lib is not None and self.fit_block <= 1:  # the fast path below, in C
+            s, hist = native_loops.hopfield_samples(
+                lib, A3, y2, self.scale_, self.center_, self.s_, self.beta / self.dt, _SMAX, k
+            )
+            self._ws, counts = None, checkpoints(N, k)
+        elif self.lam is not None or (self.fit_block <= 1 and A3.shape[1] == 2):
             # windowed weights, or the online fast path: sample by sample
             hist = []
             for i in range(N):

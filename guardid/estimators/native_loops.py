@@ -1,0 +1,83 @@
+"""The estimators' offline per-sample loops in C (``sample_loops.c`` beside this module),
+a whole log per call through ctypes: the Hopfield network's n_out = 2 fast path
+(:meth:`guardid.estimators.Hopfield.update` sample after sample) and the gradient
+estimator's loop (:meth:`guardid.estimators.Gradient.fit`). The same estimates as the
+Python paths to round-off (tests/test_estimators_native.py); 10-40x faster.
+
+Built once into guardid's cache by :func:`guardid.native.cached_library`; without a
+compiler, with ``GUARDID_NATIVE=0``, a cache directory that cannot be written or a library
+that does not load (or with :data:`USE_NATIVE` False) :func:`kernel` is None and the
+estimators keep their Python loops; a compiler error in the source raises
+:class:`guardid.native.NativeBuildError`.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+SOURCE = Path(__file__).with_name("sample_loops.c")
+USE_NATIVE = True
+"""False: the estimators take their Python loops even where the C kernel builds."""
+
+_INT, _DBL, _PTR = ctypes.c_int, ctypes.c_double, ctypes.c_void_p
+
+
+@lru_cache(maxsize=1)
+def _load():
+    from guardid.native import load_cached
+
+    return load_cached("sample_loops", [SOURCE], {
+        "guardid_hopfield_samples": ([_INT, _INT, *[_PTR] * 4, _DBL, _DBL, _INT, *[_PTR] * 3],
+                                     None),
+        "guardid_gradient_samples": ([_INT, _INT, _INT, *[_PTR] * 3, _INT, _INT, _DBL,
+                                      *[_PTR] * 3], _INT),
+    })  # fmt: skip
+
+
+def kernel():
+    """The loaded C library, or None (no compiler, ``GUARDID_NATIVE=0``, or
+    :data:`USE_NATIVE` off)."""
+    return _load() if USE_NATIVE else None
+
+
+def _c(a) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=float)
+
+
+def hopfield_samples(lib, A, y, S, c, s0, inv_c: float, smax: float, every: int):
+    """The Hopfield network over A (N, 2, p), y (N, 2) from the state s0 (p,): (final
+    state (p,), states after every ``every``-th sample (N // every, p)). S, c (p,) the box's
+    half-widths and centre, ``inv_c`` = beta / dt [unit of y^2], ``smax`` the clip."""
+    N, n, p = A.shape
+    if n != 2 or y.shape != (N, 2) or np.shape(s0) != (p,) or int(every) < 1:
+        raise ValueError(f"hopfield kernel: A {A.shape}, y {y.shape}, s {np.shape(s0)}")
+    A, y, S, c = _c(A), _c(y), _c(S), _c(c)
+    s = np.array(s0, dtype=float)
+    hist, work = np.empty((N // every, p)), np.empty(4 * p)
+    lib.guardid_hopfield_samples(N, p, A.ctypes.data, y.ctypes.data, S.ctypes.data,
+                                 c.ctypes.data, inv_c, smax, int(every), s.ctypes.data,
+                                 hist.ctypes.data, work.ctypes.data)  # fmt: skip
+    return s, hist
+
+
+def gradient_samples(lib, A, y, gAT, theta0, every: int, check: int, blowup: float):
+    """theta += gAT_k (y_k - A_k theta) over A (N, n, p), y (N, n), gAT (N, p, n) from
+    theta0 (p,), stopping at a check (every ``check`` samples) where max |theta| is not
+    below ``blowup``: (theta (p,), theta after every ``every``-th sample done, samples
+    done)."""
+    N, n, p = A.shape
+    if y.shape != (N, n) or gAT.shape != (N, p, n) or np.shape(theta0) != (p,):
+        raise ValueError(f"gradient kernel: A {A.shape}, y {y.shape}, gAT {gAT.shape}")
+    if int(every) < 1 or int(check) < 1:
+        raise ValueError("gradient kernel: every and check must be >= 1")
+    A, y, gAT = _c(A), _c(y), _c(gAT)
+    th = np.array(theta0, dtype=float)
+    hist, work = np.empty((N // every, p)), np.empty(n)
+    done = lib.guardid_gradient_samples(N, n, p, A.ctypes.data, y.ctypes.data, gAT.ctypes.data,
+                                        int(every), int(check), blowup, th.ctypes.data,
+                                        hist.ctypes.data, work.ctypes.data)  # fmt: skip
+    return th, hist[: done // every], done
