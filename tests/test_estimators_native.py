@@ -169,3 +169,21 @@ def test_no_kernel_when_turned_off_or_without_a_compiler(monkeypatch, tmp_path, 
         assert Gradient(eta=1e-1, dt=0.01).fit(A, y).n_samples_ == 300
     finally:
         native_loops._load.cache_clear()
+
+
+@pytest.mark.parametrize("beta, diverges_at", [(1e-1, None), (1e-3, 64)])
+def test_hopfield_euler_fit_in_c_follows_the_python_loop(beta, diverges_at, python_only):
+    """The explicit Euler integrator: settling (slow) and blowing up (found at the first
+    check, after sample 64), C against the Python loop."""
+    A, y = _data(5)
+    est = Hopfield(np.zeros(P), half_widths=np.ones(P), beta=beta, dt=0.01, integrator="euler",
+                   history_every=5).fit(A, y)  # fmt: skip
+    with python_only:
+        ref = Hopfield(np.zeros(P), half_widths=np.ones(P), beta=beta, dt=0.01,
+                       integrator="euler", history_every=5).fit(A, y)  # fmt: skip
+    assert est.diverged_at_ == ref.diverged_at_ == diverges_at
+    assert est.n_samples_ == ref.n_samples_ == (diverges_at or 3000)
+    assert np.array_equal(est.history_samples_, ref.history_samples_)
+    assert _close(est.history_, ref.history_) and _close(est.s_, ref.s_)
+    if diverges_at is None:
+        assert np.max(np.abs(est.theta_ - [0.5, -0.3, 0.9, 0.1])) < 0.05

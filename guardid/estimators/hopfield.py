@@ -374,26 +374,24 @@ class Hopfield(Estimator):
         N = A3.shape[0]
         k = max(self.history_every, 1)
         if self.integrator == "euler":
-            hist, p_ = [], self.s_.size
+            p_ = self.s_.size
             S, c, s = self.scale_, self.center_, self.s_
             g = self.dt / self.beta
             SAT = A3.transpose(0, 2, 1) * S[:, None]  # S A_k^T (N, p, n)
             e0 = y2 - A3 @ c  # y_k - A_k c (N, n)
             B = A3 * S  # A_k S (N, n, p)
-            n_done = 0
-            with np.errstate(over="ignore", invalid="ignore"):
-                for i in range(N):
-                    s = s + g * (1.0 - s * s) * (SAT[i] @ (e0[i] - B[i] @ s))
-                    n_done = i + 1
-                    if n_done % k == 0:
-                        hist.append(s)
-                    if n_done % 64 == 0 and not np.max(np.abs(s)) < self.blowup:
-                        break
+            lib = native_loops.kernel()
+            if lib is not None:  # _run_euler's loop, in C
+                s, hist, n_done = native_loops.gradient_samples(
+                    lib, B, e0, SAT, s, k, 64, self.blowup, hop_gain=g
+                )
+            else:
+                s, hist, n_done = _run_euler(s, B, e0, SAT, g, k, self.blowup)
             self.s_, self.theta_, self.n_samples_ = s, c + S * s, n_done
             if not np.max(np.abs(s)) < self.blowup:
                 self.diverged_, self.diverged_at_ = True, n_done
             self.history_ = (
-                self.center_ + self.scale_ * np.array(hist) if hist else np.empty((0, p_))
+                self.center_ + self.scale_ * np.array(hist) if len(hist) else np.empty((0, p_))
             )
             self.history_samples_ = checkpoints(self.n_samples_, k)
             return self
@@ -499,6 +497,22 @@ def _run_samples(s, B, c, inv_c, every):
         if (i + 1) % every == 0:
             hist.append(s)
     return s, np.array(hist), None
+
+
+def _run_euler(s, B, e0, SAT, g: float, every: int, blowup: float):
+    """Explicit Euler steps s += g (1 - s^2) S A_k^T (e0_k - B_k s) from s, B = A S (N, n, p),
+    e0 = y - A c (N, n), SAT = S A^T (N, p, n), g = dt / beta; stops at a check (every 64
+    samples) where max |s| is not below ``blowup``: (s, s after every ``every``-th sample
+    done, samples done)."""
+    hist = []
+    with np.errstate(over="ignore", invalid="ignore"):
+        for i in range(B.shape[0]):
+            s = s + g * (1.0 - s * s) * (SAT[i] @ (e0[i] - B[i] @ s))
+            if (i + 1) % every == 0:
+                hist.append(s)
+            if (i + 1) % 64 == 0 and not np.max(np.abs(s)) < blowup:
+                return s, hist, i + 1
+    return s, hist, B.shape[0]
 
 
 def _run_blocks(s, B, c, h_beta, K, every):

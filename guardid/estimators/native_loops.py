@@ -33,7 +33,7 @@ def _load():
     return load_cached("sample_loops", [SOURCE], {
         "guardid_hopfield_samples": ([_INT, _INT, *[_PTR] * 4, _DBL, _DBL, _INT, *[_PTR] * 3],
                                      None),
-        "guardid_gradient_samples": ([_INT, _INT, _INT, *[_PTR] * 3, _INT, _INT, _DBL,
+        "guardid_gradient_samples": ([_INT, _INT, _INT, *[_PTR] * 3, _INT, _INT, _DBL, _DBL,
                                       *[_PTR] * 3], _INT),
     })  # fmt: skip
 
@@ -64,11 +64,13 @@ def hopfield_samples(lib, A, y, S, c, s0, inv_c: float, smax: float, every: int)
     return s, hist
 
 
-def gradient_samples(lib, A, y, gAT, theta0, every: int, check: int, blowup: float):
+def gradient_samples(lib, A, y, gAT, theta0, every: int, check: int, blowup: float,
+                     hop_gain: float = 0.0):  # fmt: skip
     """theta += gAT_k (y_k - A_k theta) over A (N, n, p), y (N, n), gAT (N, p, n) from
     theta0 (p,), stopping at a check (every ``check`` samples) where max |theta| is not
     below ``blowup``: (theta (p,), theta after every ``every``-th sample done, samples
-    done)."""
+    done). ``hop_gain`` > 0: theta += hop_gain (1 - theta^2) gAT_k (y_k - A_k theta)
+    instead (the Hopfield network's explicit Euler step in s)."""
     N, n, p = A.shape
     if y.shape != (N, n) or gAT.shape != (N, p, n) or np.shape(theta0) != (p,):
         raise ValueError(f"gradient kernel: A {A.shape}, y {y.shape}, gAT {gAT.shape}")
@@ -78,6 +80,6 @@ def gradient_samples(lib, A, y, gAT, theta0, every: int, check: int, blowup: flo
     th = np.array(theta0, dtype=float)
     hist, work = np.empty((N // every, p)), np.empty(n)
     done = lib.guardid_gradient_samples(N, n, p, A.ctypes.data, y.ctypes.data, gAT.ctypes.data,
-                                        int(every), int(check), blowup, th.ctypes.data,
+                                        int(every), int(check), blowup, hop_gain, th.ctypes.data,
                                         hist.ctypes.data, work.ctypes.data)  # fmt: skip
     return th, hist[: done // every], done

@@ -6,7 +6,7 @@
  * linearly implicit step in s with the 2 x 2 solve by Cramer's rule, the
  * fraction-to-boundary rule (_boundary_step) and the clip to +-smax.
  * guardid_gradient_samples: Gradient.fit's loop, theta += gAT_k (y_k - A_k theta), with
- * its divergence check every `check` samples.
+ * its divergence check every `check` samples; also Hopfield.fit's explicit Euler loop.
  *
  * Layout (C order, float64): A (N, n, p) the samples' regressors, y (N, n) the outputs,
  * hist (N / every, p) the state after every `every`-th sample.
@@ -126,11 +126,13 @@ void guardid_hopfield_samples(int N, int p, const double *A, const double *y,
 }
 
 /* theta (p,) <- theta + gAT_k (y_k - A_k theta) over the N samples, gAT (N, p, n) the
- * per-sample gains; every `check` samples the run stops when max |theta_j| is not below
- * blowup (NaN included). Returns the samples done. work: n doubles. */
+ * per-sample gains; with hop_gain > 0 instead theta <- theta + hop_gain (1 - theta^2)
+ * gAT_k (y_k - A_k theta) (the Hopfield network's explicit Euler step in s, with A = A S,
+ * y = y - A c, gAT = S A^T). Every `check` samples the run stops when max |theta_j| is not
+ * below blowup (NaN included). Returns the samples done. work: n doubles. */
 int guardid_gradient_samples(int N, int n, int p, const double *A, const double *y,
                              const double *gAT, int every, int check, double blowup,
-                             double *theta, double *hist, double *work)
+                             double hop_gain, double *theta, double *hist, double *work)
 {
     int i, j, k, h = 0;
     for (i = 0; i < N; i++) {
@@ -145,7 +147,10 @@ int guardid_gradient_samples(int N, int n, int p, const double *A, const double 
             double d = 0.0;
             for (j = 0; j < n; j++)
                 d += g[k * n + j] * work[j];
-            theta[k] = theta[k] + d;
+            if (hop_gain > 0.0)
+                theta[k] = theta[k] + hop_gain * (1.0 - theta[k] * theta[k]) * d;
+            else
+                theta[k] = theta[k] + d;
         }
         if ((i + 1) % every == 0) {
             for (k = 0; k < p; k++)
