@@ -6,15 +6,16 @@ steps; the gradient estimator against its Python loop, diverging included. Toler
 two sum in different orders (BLAS against a plain loop), so they agree to round-off, not
 bit for bit: 1e-9 on the Hopfield state s in (-1, 1) (the boundary rule's cuts divide by
 the distance to the face, which amplifies round-off near it; seen up to 2e-10), 1e-12
-relative on the gradient's theta. Without the kernel (turned off, GUARDID_NATIVE=0, no
-compiler) the estimators take the Python paths."""
+relative on the gradient's theta and the MLP's weights and losses (its mini-batch epochs
+in C against numpy's matrix products; seen up to 5e-15). Without the kernel (turned off,
+GUARDID_NATIVE=0, no compiler) the estimators take the Python paths."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from guardid.estimators import Gradient, Hopfield, hopfield, native_loops
+from guardid.estimators import MLP, Gradient, Hopfield, hopfield, native_loops
 from guardid.native import find_compiler
 
 pytestmark = pytest.mark.skipif(find_compiler() is None, reason="needs a C compiler")
@@ -187,3 +188,26 @@ def test_hopfield_euler_fit_in_c_follows_the_python_loop(beta, diverges_at, pyth
     assert _close(est.history_, ref.history_) and _close(est.s_, ref.s_)
     if diverges_at is None:
         assert np.max(np.abs(est.theta_ - [0.5, -0.3, 0.9, 0.1])) < 0.05
+
+
+@pytest.mark.parametrize(
+    "settings",
+    [
+        dict(momentum=0.0, weight_decay=0.0, lr=0.1),  # seed 001's plain backpropagation
+        dict(momentum=0.9, weight_decay=0.3, lr=0.02, init_scale=1.0),
+    ],
+)
+def test_mlp_epochs_in_c_follow_numpy(settings, python_only):
+    """Mini-batch epochs (500 samples in batches of 64: the last one of 52), C against the
+    numpy backprop (itself checked against finite differences in tests/test_mlp.py)."""
+    rng = np.random.default_rng(6)
+    A, X = rng.normal(size=(500, 2, 5)), rng.normal(size=(500, 6)) * [0.5, 2, 1, 10, 3, 1]
+    y = A @ [1.5, -0.5, 0.25, 2.0, 1.0] + 0.05 * rng.normal(size=(500, 2))
+    net = MLP(epochs=4, seed=2, **settings).fit(A, y, X=X)
+    with python_only:
+        ref = MLP(epochs=4, seed=2, **settings).fit(A, y, X=X)
+    assert net.n_epochs_ == ref.n_epochs_ == 4
+    for name, w in ref.weights_.items():
+        assert _close(net.weights_[name].ravel(), w.ravel()), name
+    assert _close(net.loss_history_, ref.loss_history_) and _close(net.theta_, ref.theta_)
+    assert ref.loss_history_[-1] < 0.5 * ref.loss_history_[0]  # it did learn

@@ -1,8 +1,9 @@
 """The estimators' offline per-sample loops in C (``sample_loops.c`` beside this module),
 a whole log per call through ctypes: the Hopfield network's n_out = 2 fast path
-(:meth:`guardid.estimators.Hopfield.update` sample after sample) and the gradient
-estimator's loop (:meth:`guardid.estimators.Gradient.fit`). The same estimates as the
-Python paths to round-off (tests/test_estimators_native.py); 10-40x faster.
+(:meth:`guardid.estimators.Hopfield.update` sample after sample) and its explicit Euler
+loop, the gradient estimator's loop (:meth:`guardid.estimators.Gradient.fit`) and an epoch
+of the MLP's mini-batch descent (:meth:`guardid.estimators.MLP.fit`). The same estimates
+as the Python paths to round-off (tests/test_estimators_native.py).
 
 Built once into guardid's cache by :func:`guardid.native.cached_library`; without a
 compiler, with ``GUARDID_NATIVE=0``, a cache directory that cannot be written or a library
@@ -35,6 +36,7 @@ def _load():
                                      None),
         "guardid_gradient_samples": ([_INT, _INT, _INT, *[_PTR] * 3, _INT, _INT, _DBL, _DBL,
                                       *[_PTR] * 3], _INT),
+        "guardid_mlp_epoch": ([*[_INT] * 6, *[_PTR] * 4, _DBL, _DBL, _DBL, *[_PTR] * 3], None),
     })  # fmt: skip
 
 
@@ -83,3 +85,26 @@ def gradient_samples(lib, A, y, gAT, theta0, every: int, check: int, blowup: flo
                                         int(every), int(check), blowup, hop_gain, th.ctypes.data,
                                         hist.ctypes.data, work.ctypes.data)  # fmt: skip
     return th, hist[: done // every], done
+
+
+def mlp_epoch(lib, Xn, An, yn, perm, B: int, lr: float, mu: float, wd: float, w, vel, h: int):
+    """One epoch of the MLP's mini-batch descent over the samples in the order ``perm``
+    (N,), batches of ``B``: Xn (N, k), An (N, n, p), yn (N, n) normalised; the weights
+    W1 (k, h), b1 (h,), W2 (h, p), b2 (p,) flat in that order in ``w`` and their
+    velocities in ``vel`` (C-ordered float64), updated in place."""
+    N, n, p = An.shape
+    k = Xn.shape[1]
+    size = k * h + h + h * p + p
+    for a in (w, vel):
+        if not (a.dtype == np.float64 and a.shape == (size,) and a.flags.c_contiguous):
+            raise ValueError(f"mlp kernel: weights of {a.dtype} {a.shape}, expected ({size},)")
+    Xn, An, yn = _c(Xn), _c(An), _c(yn)
+    perm = np.ascontiguousarray(perm, dtype=np.int64)
+    if Xn.shape != (N, k) or yn.shape != (N, n) or perm.shape != (N,) or not 1 <= B <= N:
+        raise ValueError(f"mlp kernel: Xn {Xn.shape}, An {An.shape}, yn {yn.shape}, B {B}")
+    if N and (perm.min() < 0 or perm.max() >= N):
+        raise ValueError("mlp kernel: perm indexes beyond the samples")
+    work = np.empty(2 * B * h + B * p + n + p + size)
+    lib.guardid_mlp_epoch(N, int(B), k, h, n, p, Xn.ctypes.data, An.ctypes.data,
+                          yn.ctypes.data, perm.ctypes.data, lr, mu, wd, w.ctypes.data,
+                          vel.ctypes.data, work.ctypes.data)  # fmt: skip

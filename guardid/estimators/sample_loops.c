@@ -7,6 +7,7 @@
  * fraction-to-boundary rule (_boundary_step) and the clip to +-smax.
  * guardid_gradient_samples: Gradient.fit's loop, theta += gAT_k (y_k - A_k theta), with
  * its divergence check every `check` samples; also Hopfield.fit's explicit Euler loop.
+ * guardid_mlp_epoch: one epoch of MLP.fit's mini-batch gradient descent.
  *
  * Layout (C order, float64): A (N, n, p) the samples' regressors, y (N, n) the outputs,
  * hist (N / every, p) the state after every `every`-th sample.
@@ -164,4 +165,87 @@ int guardid_gradient_samples(int N, int n, int p, const double *A, const double 
         }
     }
     return N;
+}
+
+/* One epoch of the MLP's mini-batch gradient descent (mlp.py: MLP._loss_grad, MLP._step):
+ * the samples in the order perm (N,), batches of B (the last one shorter). Xn (N, k)
+ * normalised inputs, An (N, n, p) normalised regressors, yn (N, n) normalised outputs;
+ * weights W1 (k, h), b1 (h,), W2 (h, p), b2 (p,) and their velocities vW1 .. vb2 (used
+ * when mu > 0) updated in place, in that order in one array each: w (k h + h + h p + p),
+ * vel (same). lr the learning rate, mu the momentum, wd the weight decay on W2.
+ * work: 2 B h + B p + n + p + k h + h + h p + p doubles. */
+void guardid_mlp_epoch(int N, int B, int k, int h, int n, int p, const double *Xn,
+                       const double *An, const double *yn, const long long *perm, double lr,
+                       double mu, double wd, double *w, double *vel, double *work)
+{
+    int nw = k * h + h + h * p + p;
+    double *W1 = w, *b1 = w + k * h, *W2 = b1 + h, *b2 = W2 + h * p;
+    double *H = work, *dZ = H + (long)B * h, *G = dZ + (long)B * h, *E = G + (long)B * p;
+    double *o = E + n, *grad = o + p; /* grad: gW1, gb1, gW2, gb2, the layout of w */
+    double *gW1 = grad, *gb1 = grad + k * h, *gW2 = gb1 + h, *gb2 = gW2 + h * p;
+    int s, b, i, j, m;
+    for (s = 0; s < N; s += B) {
+        int nb = N - s < B ? N - s : B;
+        for (b = 0; b < nb; b++) { /* forward, the error and dF/do = A^T e / B */
+            long r = (long)perm[s + b];
+            const double *x = Xn + r * k, *a = An + r * n * p, *yy = yn + r * n;
+            double *hb = H + (long)b * h, *g = G + (long)b * p;
+            for (j = 0; j < h; j++) {
+                double z = 0.0;
+                for (i = 0; i < k; i++)
+                    z += x[i] * W1[i * h + j];
+                hb[j] = tanh(z + b1[j]);
+            }
+            for (m = 0; m < p; m++) {
+                double v = 0.0;
+                for (j = 0; j < h; j++)
+                    v += hb[j] * W2[j * p + m];
+                o[m] = v + b2[m];
+            }
+            for (i = 0; i < n; i++) {
+                double v = 0.0;
+                for (m = 0; m < p; m++)
+                    v += a[i * p + m] * o[m];
+                E[i] = v - yy[i];
+            }
+            for (m = 0; m < p; m++) {
+                double v = 0.0;
+                for (i = 0; i < n; i++)
+                    v += a[i * p + m] * E[i];
+                g[m] = v / nb;
+            }
+            for (j = 0; j < h; j++) { /* back through tanh */
+                double v = 0.0;
+                for (m = 0; m < p; m++)
+                    v += g[m] * W2[j * p + m];
+                dZ[(long)b * h + j] = v * (1.0 - hb[j] * hb[j]);
+            }
+        }
+        for (j = 0; j < nw; j++)
+            grad[j] = 0.0;
+        for (b = 0; b < nb; b++) {
+            const double *x = Xn + (long)perm[s + b] * k, *hb = H + (long)b * h;
+            const double *g = G + (long)b * p, *dz = dZ + (long)b * h;
+            for (j = 0; j < h; j++)
+                for (m = 0; m < p; m++)
+                    gW2[j * p + m] += hb[j] * g[m];
+            for (m = 0; m < p; m++)
+                gb2[m] += g[m];
+            for (i = 0; i < k; i++)
+                for (j = 0; j < h; j++)
+                    gW1[i * h + j] += x[i] * dz[j];
+            for (j = 0; j < h; j++)
+                gb1[j] += dz[j];
+        }
+        for (j = 0; j < h * p; j++)
+            gW2[j] += wd * W2[j];
+        for (j = 0; j < nw; j++) {
+            if (mu != 0.0) {
+                vel[j] = vel[j] * mu - lr * grad[j];
+                w[j] += vel[j];
+            } else {
+                w[j] -= lr * grad[j];
+            }
+        }
+    }
 }
