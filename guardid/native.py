@@ -13,6 +13,7 @@ comparison or a suspected fast-path bug), and the caller takes its numpy path.
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import os
 import shutil
@@ -93,3 +94,22 @@ def cached_library(
     lib = cache_dir() / f"lib{name}-{digest.hexdigest()[:16]}.so"
     c_files = [str(p) for p in sources if str(p).endswith(".c")]
     return build_cached(lib, lambda out: [cc, *cflags, *c_files, "-o", out], f"building {name}")
+
+
+def load_cached(name: str, sources: Sequence[Path], signatures: dict) -> ctypes.CDLL | None:
+    """The library of :func:`cached_library` loaded through ctypes, each function of
+    ``signatures`` ({C name: (argtypes, restype)}) declared; None without a compiler, with
+    ``GUARDID_NATIVE=0``, with a cache directory that cannot be written or a library that
+    does not load (the caller takes its Python path). A compiler error raises
+    :class:`NativeBuildError`."""
+    try:
+        path = cached_library(name, sources)
+        lib = None if path is None else ctypes.CDLL(str(path))
+    except OSError:
+        return None
+    if lib is None:
+        return None
+    for fn, (argtypes, restype) in signatures.items():
+        getattr(lib, fn).argtypes = argtypes
+        getattr(lib, fn).restype = restype
+    return lib

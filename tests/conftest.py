@@ -85,18 +85,39 @@ def gap_guard_wls_params(gap_guard_captures, tmp_path_factory) -> dict:
     return out
 
 
+@pytest.fixture(scope="module")
+def blas_one_thread():
+    """BLAS on one thread for a whole module of CPU-bound reproductions: OpenBLAS's threads
+    only spin on the busy 2-core runner (seed001-table1: about 11 s of CPU on one thread,
+    20 s on two, for the same figures)."""
+    with one_blas_thread():
+        yield
+
+
 @pytest.fixture(scope="session")
-def seed001_table1_report(tmp_path_factory):
+def reproduced(tmp_path_factory):
+    """``reproduced(name, run)``: the Report of ``run()``, a deterministic reproduction,
+    made once per test run (under one BLAS thread, as :func:`blas_one_thread`) whichever
+    xdist worker asks first, and unpickled in each worker that asks."""
+
+    def get(name: str, run):
+        def make(d):
+            with one_blas_thread():
+                (d / "report.pickle").write_bytes(pickle.dumps(run()))
+
+        d = made_once(tmp_path_factory, name, make)
+        return pickle.loads((d / "report.pickle").read_bytes())
+
+    return get
+
+
+@pytest.fixture(scope="session")
+def seed001_table1_report(reproduced):
     """``guardid reproduce seed001-table1`` at its defaults (15 noise seeds), run once per
-    test run (about 25 s of CPU), whichever xdist worker asks first: shared by
-    test_reproduce and test_mlp_reproduce."""
+    test run (about 11 s of CPU): shared by test_reproduce and test_mlp_reproduce."""
     from guardid.reproduce import seed001_table1
 
-    def make(d):
-        (d / "report.pickle").write_bytes(pickle.dumps(seed001_table1.run(0)))
-
-    d = made_once(tmp_path_factory, "seed001_table1", make)
-    return pickle.loads((d / "report.pickle").read_bytes())
+    return reproduced("seed001_table1", lambda: seed001_table1.run(0))
 
 
 REPLAY_CAPTURE_S = 8

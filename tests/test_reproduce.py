@@ -19,6 +19,8 @@ from guardid.reproduce import (
     seed001_table1,
 )
 
+pytestmark = pytest.mark.usefixtures("blas_one_thread")
+
 
 @pytest.fixture(scope="module")
 def table1(seed001_table1_report):
@@ -26,13 +28,13 @@ def table1(seed001_table1_report):
 
 
 @pytest.fixture(scope="module")
-def step():
-    return seed000_step.run(0, seeds=3)
+def step(reproduced):
+    return reproduced("seed000_step", lambda: seed000_step.run(0, seeds=3))
 
 
 @pytest.fixture(scope="module")
-def fast():
-    return seed000_fast.run(0, seeds=3)
+def fast(reproduced):
+    return reproduced("seed000_fast", lambda: seed000_fast.run(0, seeds=3))
 
 
 def test_registry_and_cli_registration():

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import native_loops
 from ._base import Estimator, as_blocks, as_sample
 
 _CHECK = 64  # offline divergence check stride (samples)
@@ -91,21 +92,35 @@ class Gradient(Estimator):
             gAT = AT @ np.linalg.inv(M)
         else:
             gAT = (2 * self.eta * self.dt) * AT
-        th, hist, counts = self.theta_, [], []
         every = max(self.history_every, 1)
-        with np.errstate(over="ignore", invalid="ignore"):
-            for i in range(N):
-                th = th + gAT[i] @ (y2[i] - A3[i] @ th)
-                if (i + 1) % every == 0:
-                    hist.append(th)
-                    counts.append(i + 1)
-                if (i + 1) % _CHECK == 0 and not np.max(np.abs(th)) < self.blowup:
-                    self.theta_, self.n_samples_ = th, i + 1
-                    self._check()
-                    break
+        lib = native_loops.kernel()
+        if lib is not None:  # the loop of _run_samples, in C
+            th, hist, done = native_loops.gradient_samples(
+                lib, A3, y2, gAT, self.theta_, every, _CHECK, self.blowup
+            )
+        else:
+            th, hist, done = _run_samples(A3, y2, gAT, self.theta_, every, self.blowup)
+        if done < N:  # stopped at a check
+            self.theta_, self.n_samples_ = th, done
+            self._check()
         self.theta_ = th
         self.n_samples_ = self.diverged_at_ or N
         self._check()
-        self.history_ = np.array(hist) if hist else np.empty((0, p))
-        self.history_samples_ = np.array(counts, dtype=int)
+        self.history_ = np.array(hist).reshape(-1, p)
+        self.history_samples_ = np.arange(every, done + 1, every, dtype=int)
         return self
+
+
+def _run_samples(A3, y2, gAT, theta0, every: int, blowup: float):
+    """theta += gAT_k (y_k - A_k theta) sample after sample from theta0, stopping at a check
+    (every :data:`_CHECK` samples) where max |theta| is not below ``blowup``: (theta, theta
+    after every ``every``-th sample done, samples done)."""
+    th, hist = theta0, []
+    with np.errstate(over="ignore", invalid="ignore"):
+        for i in range(A3.shape[0]):
+            th = th + gAT[i] @ (y2[i] - A3[i] @ th)
+            if (i + 1) % every == 0:
+                hist.append(th)
+            if (i + 1) % _CHECK == 0 and not np.max(np.abs(th)) < blowup:
+                return th, hist, i + 1
+    return th, hist, A3.shape[0]

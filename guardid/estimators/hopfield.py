@@ -56,13 +56,16 @@ change). Costs one p x p solve per sample.
 Online fast path (n_out = 2, float64 arrays): the same step with the work arrays kept
 between samples: Dm = diag(S^2 D) (p, p) is updated through a view of its diagonal, so
 M = A S D S A^T and A theta come from two small matrix products (A Dm, then A [A Dm ; theta]^T);
-the 2 x 2 solve is done in Python floats. ``fit_block=1`` with 2 outputs runs this path.
+the 2 x 2 solve is done in Python floats. ``fit_block=1`` with 2 outputs runs this path,
+in C when a compiler is at hand (:mod:`guardid.estimators.native_loops`, the same steps to
+round-off; ``GUARDID_NATIVE=0``: in Python).
 
 Measured (bench/bench_estimators.py, p = 12, n_out = 2, shared machine): online ``update``
 6.3-6.7 us/sample in the quieter passes (~3x faster than padasip's FilterRLS fed the same
 rows in the same run; 15-25 us/sample before the fast path); offline 240000 samples in
 0.34-0.38 s with the default K = 16 (~650000 samples/s), ~1.8 s with K = 1 (~130000
-samples/s; 3.1-3.5 s before).
+samples/s; 3.1-3.5 s before) in Python; K = 1 in C 0.03 s of CPU (2026-11-27, the same
+240000 random samples, p = 12, loaded machine).
 """
 
 from __future__ import annotations
@@ -73,6 +76,7 @@ from math import sqrt as _sqrt
 import numpy as np
 from scipy.linalg.lapack import dposv as _dposv
 
+from . import native_loops
 from ._base import Estimator, as_blocks, as_sample, checkpoints
 
 _SMAX = np.nextafter(1.0, 0.0)
@@ -371,30 +375,34 @@ class Hopfield(Estimator):
         N = A3.shape[0]
         k = max(self.history_every, 1)
         if self.integrator == "euler":
-            hist, p_ = [], self.s_.size
+            p_ = self.s_.size
             S, c, s = self.scale_, self.center_, self.s_
             g = self.dt / self.beta
             SAT = A3.transpose(0, 2, 1) * S[:, None]  # S A_k^T (N, p, n)
             e0 = y2 - A3 @ c  # y_k - A_k c (N, n)
             B = A3 * S  # A_k S (N, n, p)
-            n_done = 0
-            with np.errstate(over="ignore", invalid="ignore"):
-                for i in range(N):
-                    s = s + g * (1.0 - s * s) * (SAT[i] @ (e0[i] - B[i] @ s))
-                    n_done = i + 1
-                    if n_done % k == 0:
-                        hist.append(s)
-                    if n_done % 64 == 0 and not np.max(np.abs(s)) < self.blowup:
-                        break
+            lib = native_loops.kernel()
+            if lib is not None:  # _run_euler's loop, in C
+                s, hist, n_done = native_loops.gradient_samples(
+                    lib, B, e0, SAT, s, k, 64, self.blowup, hop_gain=g
+                )
+            else:
+                s, hist, n_done = _run_euler(s, B, e0, SAT, g, k, self.blowup)
             self.s_, self.theta_, self.n_samples_ = s, c + S * s, n_done
             if not np.max(np.abs(s)) < self.blowup:
                 self.diverged_, self.diverged_at_ = True, n_done
             self.history_ = (
-                self.center_ + self.scale_ * np.array(hist) if hist else np.empty((0, p_))
+                self.center_ + self.scale_ * np.array(hist) if len(hist) else np.empty((0, p_))
             )
             self.history_samples_ = checkpoints(self.n_samples_, k)
             return self
-        if self.lam is not None or (self.fit_block <= 1 and A3.shape[1] == 2):
+        lib = native_loops.kernel() if self.lam is None and A3.shape[1] == 2 else None
+        if lib is not None and self.fit_block <= 1:  # the fast path below, in C
+            s, hist = native_loops.hopfield_samples(
+                lib, A3, y2, self.scale_, self.center_, self.s_, self.beta / self.dt, _SMAX, k
+            )
+            self._ws, counts = None, checkpoints(N, k)
+        elif self.lam is not None or (self.fit_block <= 1 and A3.shape[1] == 2):
             # windowed weights, or the online fast path: sample by sample
             hist = []
             for i in range(N):
@@ -490,6 +498,22 @@ def _run_samples(s, B, c, inv_c, every):
         if (i + 1) % every == 0:
             hist.append(s)
     return s, np.array(hist), None
+
+
+def _run_euler(s, B, e0, SAT, g: float, every: int, blowup: float):
+    """Explicit Euler steps s += g (1 - s^2) S A_k^T (e0_k - B_k s) from s, B = A S (N, n, p),
+    e0 = y - A c (N, n), SAT = S A^T (N, p, n), g = dt / beta; stops at a check (every 64
+    samples) where max |s| is not below ``blowup``: (s, s after every ``every``-th sample
+    done, samples done)."""
+    hist = []
+    with np.errstate(over="ignore", invalid="ignore"):
+        for i in range(B.shape[0]):
+            s = s + g * (1.0 - s * s) * (SAT[i] @ (e0[i] - B[i] @ s))
+            if (i + 1) % every == 0:
+                hist.append(s)
+            if (i + 1) % 64 == 0 and not np.max(np.abs(s)) < blowup:
+                return s, hist, i + 1
+    return s, hist, B.shape[0]
 
 
 def _run_blocks(s, B, c, h_beta, K, every):

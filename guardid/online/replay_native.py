@@ -27,27 +27,18 @@ _INT, _DBL, _PTR = ctypes.c_int, ctypes.c_double, ctypes.c_void_p
 
 @lru_cache(maxsize=1)
 def _load():
-    from guardid.native import cached_library
+    from guardid.native import load_cached
 
-    try:  # a compiler error raises (a source bug); a cache or loader that fails: numpy
-        path = cached_library("replay_rows", [SOURCE])
-        lib = None if path is None else ctypes.CDLL(str(path))
-    except OSError:
-        return None
-    if lib is None:
-        return None
-    lib.guardid_rls_rows.argtypes = [_INT, _INT, _INT, _PTR, _PTR, _DBL, *[_PTR] * 6]
-    lib.guardid_rls_rows.restype = _INT
-    lib.guardid_hopfield_rows.argtypes = [
+    hopfield_args = [
         _INT, _INT, _INT, _INT, _PTR, _PTR, _DBL, _PTR, _PTR, _PTR, _DBL, _DBL, _DBL,
         *[_PTR] * 6,
     ]  # fmt: skip
-    lib.guardid_hopfield_rows.restype = _INT
-    lib.guardid_information_rows.argtypes = [_INT, _INT, _INT, _PTR, _DBL, _PTR, _PTR]
-    lib.guardid_information_rows.restype = None
-    lib.guardid_cusum_rows.argtypes = [_INT, _INT, _PTR, _PTR, _PTR, _DBL, _DBL, *[_PTR] * 3]
-    lib.guardid_cusum_rows.restype = _INT
-    return lib
+    return load_cached("replay_rows", [SOURCE], {
+        "guardid_rls_rows": ([_INT, _INT, _INT, _PTR, _PTR, _DBL, *[_PTR] * 6], _INT),
+        "guardid_hopfield_rows": (hopfield_args, _INT),
+        "guardid_information_rows": ([_INT, _INT, _INT, _PTR, _DBL, _PTR, _PTR], None),
+        "guardid_cusum_rows": ([_INT, _INT, _PTR, _PTR, _PTR, _DBL, _DBL, *[_PTR] * 3], _INT),
+    })  # fmt: skip
 
 
 def kernel():

@@ -17,10 +17,9 @@ import numpy as np
 
 def accel(model, q, qd, tau, params) -> tuple[float, float]:
     """q'' = M^-1 (tau - bias) for a 2-DOF model, one sample [rad/s^2] (2x2 Cramer solve)."""
-    m = model.mass_matrix_1(q, params)
-    b = model.bias_1(q, qd, params)
-    r0, r1 = tau[0] - b[0], tau[1] - b[1]
-    a, c, d = m[0, 0], m[0, 1], m[1, 1]
+    (a, c), (_, d) = np.asarray(model.mass_matrix_1(q, params)).tolist()  # Python floats:
+    b0, b1 = np.asarray(model.bias_1(q, qd, params)).tolist()  # the same values, faster
+    r0, r1 = tau[0] - b0, tau[1] - b1
     det = a * d - c * c
     return (d * r0 - c * r1) / det, (a * r1 - c * r0) / det
 
@@ -28,20 +27,23 @@ def accel(model, q, qd, tau, params) -> tuple[float, float]:
 def rk4_step(model, t: float, x: list, h: float, tau_fn: Callable, params_fn: Callable) -> list:
     """One RK4 step of length h [s] of x = (q1, q2, q1', q2') for a 2-DOF model.
 
-    ``tau_fn(t)`` -> generalised forces (2,) [N m]; ``params_fn(t)`` -> model parameters.
+    ``tau_fn(t)`` -> generalised forces (2,) [N m]; ``params_fn(t)`` -> model parameters
+    (each called once per distinct time: t, t + h/2, t + h).
     """
 
     def f(tt, s):
-        a0, a1 = accel(model, s[:2], s[2:], tau_fn(tt), params_fn(tt))
+        a0, a1 = accel(model, s[:2], s[2:], *tt)
         return (s[2], s[3], a0, a1)
 
-    k1 = f(t, x)
+    tm = t + 0.5 * h
+    mid = (tau_fn(tm), params_fn(tm))
+    k1 = f((tau_fn(t), params_fn(t)), x)
     x2 = [x[i] + 0.5 * h * k1[i] for i in range(4)]
-    k2 = f(t + 0.5 * h, x2)
+    k2 = f(mid, x2)
     x3 = [x[i] + 0.5 * h * k2[i] for i in range(4)]
-    k3 = f(t + 0.5 * h, x3)
+    k3 = f(mid, x3)
     x4 = [x[i] + h * k3[i] for i in range(4)]
-    k4 = f(t + h, x4)
+    k4 = f((tau_fn(t + h), params_fn(t + h)), x4)
     return [x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]) for i in range(4)]
 
 

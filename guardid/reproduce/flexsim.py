@@ -71,8 +71,13 @@ def eq26_input():
     w = (2 * np.pi * sig.frequencies[0]).tolist()
     ph = sig.phases[0].tolist()
 
+    terms = list(zip(amp, w, ph, strict=True))
+
     def u(t: float) -> float:
-        return sum(a * math.sin(wi * t + p) for a, wi, p in zip(amp, w, ph, strict=True))
+        out = 0.0
+        for a, wi, p in terms:
+            out += a * math.sin(wi * t + p)
+        return out
 
     return u, sig
 
@@ -89,8 +94,8 @@ def simulate(mass_fn, l1_fn, t_end: float = T_END) -> FlexRun:
     l2, k = desc.l2, desc.stiffness
     u_fn, _ = eq26_input()
 
-    def params(t):
-        return model.physical_params(mass_fn(t), l1_fn(t), l2, k)
+    def params(t):  # Python floats: the same values, faster arithmetic in the model
+        return model.physical_params(mass_fn(t), l1_fn(t), l2, k).tolist()
 
     def tau(t):
         return (u_fn(t), 0.0)

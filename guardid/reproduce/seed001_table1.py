@@ -112,7 +112,9 @@ def simulate(duration: float = DURATION):
     n = int(round(duration / DT)) + 1
     t = DT * np.arange(n)
     qd_des, vd_des = traj.positions(t), traj.velocities(t)
-    x = [*qd_des[0], *vd_des[0]]  # start on the desired trajectory
+    # Python floats (the same values as the arrays'; scalar arithmetic on them is faster)
+    qd_l, vd_l, params = qd_des.tolist(), vd_des.tolist(), model.params.tolist()
+    x = [*qd_l[0], *vd_l[0]]  # start on the desired trajectory
     integ = [0.0, 0.0]
     log = np.empty((n, 8))
     held = [0.0, 0.0]
@@ -121,14 +123,14 @@ def simulate(duration: float = DURATION):
         return held
 
     def params_fn(_t):
-        return model.params
+        return params
 
     for k in range(n):
-        e = (qd_des[k, 0] - x[0], qd_des[k, 1] - x[1])
-        ed = (vd_des[k, 0] - x[2], vd_des[k, 1] - x[3])
+        e = (qd_l[k][0] - x[0], qd_l[k][1] - x[1])
+        ed = (vd_l[k][0] - x[2], vd_l[k][1] - x[3])
         integ = [integ[0] + e[0] * DT, integ[1] + e[1] * DT]
         held = [KP[j] * e[j] + KI[j] * integ[j] + KD[j] * ed[j] for j in range(2)]
-        a0, a1 = accel(model, x[:2], x[2:], held, model.params)
+        a0, a1 = accel(model, x[:2], x[2:], held, params)
         log[k] = (x[0], x[1], x[2], x[3], a0, a1, held[0], held[1])
         x = rk4_step(model, t[k], x, DT, tau_fn, params_fn)
     return t, log[:, :2], log[:, 2:4], log[:, 4:6], log[:, 6:8], qd_des, model
