@@ -102,3 +102,20 @@ def test_the_rounding_compensation_does_not_turn_a_creeping_joint():
     fc, fv = names.index("Fc1"), names.index("Fv1")
     assert np.all(S[0, fc, :] == 0.0) and np.all(S[0, :, fc] == 0.0)
     assert S[0, fv, fv] > 0.0
+
+
+def test_a_reversal_through_a_period_without_a_count_is_cut():
+    """Up to a count, one period without a count, back down: the joint turns inside the
+    flat period (or in one next to it), so no period there has one direction. The ticks
+    of the flat period (4 and 5) are flagged, as a reversal between two counts flags its
+    tick; symmetric (the velocities at ticks 4 and 5 cancel) and not. Nothing else is."""
+    for counts in ([0, 1, 2, 3, 4, 4, 3, 2, 1, 0], [0, 2, 4, 6, 7, 7, 5, 3, 1, 0]):
+        q = np.array(counts, dtype=float)[:, None] * 1e-3
+        v = mom.tick_velocity(q, DT)[0]
+        for flat_is_stuck in (True, False):
+            bad = mom.slow_ticks(q, v, threshold=np.zeros(1), flat_is_stuck=flat_is_stuck)
+            assert np.flatnonzero(bad[:, 0]).tolist() == [4, 5], (counts, flat_is_stuck)
+    q = np.array([0, 1, 2, 3, 4, 4, 4, 3, 2, 1.0])[:, None] * 1e-3  # two flat periods
+    v = mom.tick_velocity(q, DT)[0]
+    bad = mom.slow_ticks(q, v, threshold=np.zeros(1), flat_is_stuck=False)
+    assert np.flatnonzero(bad[:, 0]).tolist() == [4, 5, 6]

@@ -354,13 +354,15 @@ def flagged_ticks(q, v, dt, *, threshold, flat_is_stuck, position_limits, resolu
 
 def slow_ticks(q, v, *, threshold, flat_is_stuck):
     """(N, n) bool: |v| below ``threshold`` (n,) [unit/s], a reversal of the count
-    direction, or (``flat_is_stuck``) no count in either period next to a tick (and the
-    ticks either side of it). One period without a count is not a stuck joint: a joint
-    that creeps at under a count per period has such periods while it moves, and cutting
-    them would choose rows by the rounding's phase (a selection that biased the friction
-    pair of a slowly moving joint by about 0.2 std, ``bench/bench_std_check.py --sets
-    fast120``); :func:`period_direction` gives them their direction. A joint stuck for
-    two periods or more has a tick with no count on either side."""
+    direction (the ticks between the last count one way and the first the other way: a
+    turn through periods without a count included), or (``flat_is_stuck``) no count in
+    either period next to a tick (and the ticks either side of it). One period without a
+    count is not a stuck joint: a joint that creeps at under a count per period has such
+    periods while it moves, and cutting them would choose rows by the rounding's phase (a
+    selection that biased the friction pair of a slowly moving joint by about 0.2 std,
+    ``bench/bench_std_check.py --sets fast120``); :func:`period_direction` gives them
+    their direction. A joint stuck for two periods or more has a tick with no count on
+    either side."""
     bad = np.abs(v) < np.asarray(threshold, dtype=float)
     dq = np.diff(q, axis=0)
     if flat_is_stuck:  # no count in either period next to a tick: stuck there
@@ -368,9 +370,21 @@ def slow_ticks(q, v, *, threshold, flat_is_stuck):
         bad[:-2] |= still
         bad[1:-1] |= still
         bad[2:] |= still
-    rev = np.sign(dq[1:]) * np.sign(dq[:-1]) < 0
-    bad[1:-1] |= rev
+    bad[1:-1] |= _turns(dq)
     return bad
+
+
+def _turns(dq) -> np.ndarray:
+    """(N-2, n) bool, ticks 1 .. N-2: the last count change before the tick and the
+    first after it have opposite signs (a reversal, at the tick or through the periods
+    without a count around it); dq (N-1, n) the count changes."""
+    way = np.vstack([np.sign(dq), np.zeros((1, dq.shape[1]))])  # row -1 / N-1: none
+    at = np.arange(dq.shape[0])[:, None]
+    last = np.maximum.accumulate(np.where(way[:-1] != 0.0, at, -1), axis=0)
+    first = np.minimum.accumulate(np.where(way[:-1] != 0.0, at, dq.shape[0])[::-1], axis=0)
+    before = np.take_along_axis(way, last[:-1], axis=0)
+    after = np.take_along_axis(way, first[::-1][1:], axis=0)
+    return before * after < 0.0
 
 
 def at_stop(q, position_limits, resolution=None) -> np.ndarray:
