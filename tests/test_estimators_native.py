@@ -211,3 +211,17 @@ def test_mlp_epochs_in_c_follow_numpy(settings, python_only):
         assert _close(net.weights_[name].ravel(), w.ravel()), name
     assert _close(net.loss_history_, ref.loss_history_) and _close(net.theta_, ref.theta_)
     assert ref.loss_history_[-1] < 0.5 * ref.loss_history_[0]  # it did learn
+
+
+def test_hopfield_fit_in_c_with_scalar_bounds(python_only):
+    """Bounds given as two numbers (one box for every parameter, theta_n (p,)): the C fit
+    gives each parameter the same half-width and centre, as the Python path broadcasts
+    them, and both find the truth (a fast network, little noise)."""
+    A, y = _data(7, n=600, noise=0.01)
+    est = Hopfield(np.full(P, 0.2), bounds=(-2.0, 2.0), beta=1e-4, dt=0.01, fit_block=1)
+    est.fit(A, y)
+    with python_only:
+        ref = Hopfield(np.full(P, 0.2), bounds=(-2.0, 2.0), beta=1e-4, dt=0.01, fit_block=1)
+        ref.fit(A, y)
+    assert np.max(np.abs(est.s_ - ref.s_)) < 1e-9
+    assert np.max(np.abs(est.theta_ - [0.5, -0.3, 0.9, 0.1])) < 0.02

@@ -53,11 +53,13 @@ def _c(a) -> np.ndarray:
 def hopfield_samples(lib, A, y, S, c, s0, inv_c: float, smax: float, every: int):
     """The Hopfield network over A (N, 2, p), y (N, 2) from the state s0 (p,): (final
     state (p,), states after every ``every``-th sample (N // every, p)). S, c (p,) the box's
-    half-widths and centre, ``inv_c`` = beta / dt [unit of y^2], ``smax`` the clip."""
+    half-widths and centre (or one for all: broadcast to (p,) as the Python path does),
+    ``inv_c`` = beta / dt [unit of y^2], ``smax`` the clip."""
     N, n, p = A.shape
     if n != 2 or y.shape != (N, 2) or np.shape(s0) != (p,) or int(every) < 1:
         raise ValueError(f"hopfield kernel: A {A.shape}, y {y.shape}, s {np.shape(s0)}")
-    A, y, S, c = _c(A), _c(y), _c(S), _c(c)
+    A, y = _c(A), _c(y)
+    S, c = (_c(np.broadcast_to(np.asarray(x, dtype=float), (p,))) for x in (S, c))
     s = np.array(s0, dtype=float)
     hist, work = np.empty((N // every, p)), np.empty(4 * p)
     lib.guardid_hopfield_samples(N, p, A.ctypes.data, y.ctypes.data, S.ctypes.data,
