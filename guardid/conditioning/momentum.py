@@ -696,7 +696,12 @@ def quantisation_noise(state: MomentumState, model, resolution, damping, *,
     fresh draws of such e to the counts and forming the rows again (their difference is
     the noise, to first order in e: the stencils and filter are linear, the rest smooth),
     on ``windows`` windows of ``window_ticks`` ticks evenly spread over the run (each cut
-    at its ends like a gap), scaled per joint by the run's usable rows over the windows'."""
+    at its ends like a gap), scaled per joint by the run's usable rows over the windows'.
+    Each draw keeps every period's direction (:func:`period_direction` of the counts): the
+    rounding does not turn the joint. ``trajectory`` (N, n) [rad | m] or None: the true
+    positions (a simulation's) instead of the counts; each draw then rounds them afresh to
+    whole counts with a random offset per joint, the difference from the unrounded rows
+    being the noise."""
     q, valid = state.q, state.valid
     n_t, n = q.shape
     res = np.asarray(resolution, dtype=float)
