@@ -261,7 +261,8 @@ def period_regressor(model, q, v, dt: float, kink_points: int | None = None,
     ``kink_points``: the velocities come from that stencil and the drive steps at the ticks;
     the stencil's momentum error from the steps of the rest of the torque (its period
     integrals R_k, linear in the parameters) is added, :func:`kink_correction` of R / T, as
-    the drive's is to the impulses: together the net torque's steps."""
+    the drive's is to the impulses: together the net torque's steps. ``direction`` (N, n):
+    d_k of the Coulomb column, None for :func:`period_direction` of ``q``, ``v``."""
     n_t, n = q.shape
     B = model.base.B
     if direction is None:
