@@ -225,3 +225,24 @@ def test_hopfield_fit_in_c_with_scalar_bounds(python_only):
         ref.fit(A, y)
     assert np.max(np.abs(est.s_ - ref.s_)) < 1e-9
     assert np.max(np.abs(est.theta_ - [0.5, -0.3, 0.9, 0.1])) < 0.02
+
+
+def test_a_build_that_fails_is_a_warning_and_the_python_loops(monkeypatch, tmp_path):
+    """A compiler that errs (here a script printing an error and exiting 1): one warning
+    naming the build, no kernel, and the fits run their Python loops (a speed-up lost is
+    not an error of the fit)."""
+    bad = tmp_path / "badcc"
+    bad.write_text("#!/bin/sh\necho 'cc: internal compiler error: killed' >&2\nexit 1\n")
+    bad.chmod(0o755)
+    native_loops._load.cache_clear()
+    try:
+        monkeypatch.setenv("CC", str(bad))
+        monkeypatch.setenv("GUARDID_CACHE_DIR", str(tmp_path / "cache"))
+        with pytest.warns(UserWarning, match="C fast path sample_loops is off: building"):
+            assert native_loops.kernel() is None
+        A, y = _data(4, n=300)
+        est = _hopfield(1e-3).fit(A, y)
+        by_update = _by_update(_hopfield(1e-3), A, y, 3)
+        assert np.array_equal(est.history_, est.center_ + est.scale_ * by_update)
+    finally:
+        native_loops._load.cache_clear()

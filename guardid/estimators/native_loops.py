@@ -7,9 +7,8 @@ as the Python paths to round-off (tests/test_estimators_native.py).
 
 Built once into guardid's cache by :func:`guardid.native.cached_library`; without a
 compiler, with ``GUARDID_NATIVE=0``, a cache directory that cannot be written or a library
-that does not load (or with :data:`USE_NATIVE` False) :func:`kernel` is None and the
-estimators keep their Python loops; a compiler error in the source raises
-:class:`guardid.native.NativeBuildError`.
+that does not load, a build that fails (one warning naming it), or with :data:`USE_NATIVE`
+False, :func:`kernel` is None and the estimators keep their Python loops.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ to round-off: tests/test_replay_native.py), without its (block, p, p) arrays.
 Built once into guardid's cache by :func:`guardid.native.cached_library`; without a
 compiler, with a cache directory that cannot be written or a library that does not load
 (or with :data:`USE_NATIVE` False) :func:`kernel` is None and the replay keeps its numpy
-path; a compiler error in the source raises :class:`guardid.native.NativeBuildError`.
+path, as after a build that fails (one warning naming it: :func:`guardid.native.load_cached`).
 """
 
 from __future__ import annotations
