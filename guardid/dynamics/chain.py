@@ -24,6 +24,11 @@ from guardid.dynamics.base import BaseParameters, compute_base
 from guardid.dynamics.newton_euler import link_physical, rnea
 from guardid.robot.description import STANDARD_NAMES, ChainDescription
 
+_BASES: dict = {}
+"""compute_base's results by all they depend on (the joints: geometry, drives, rotors,
+friction; gravity; the parameter names; the known zeros): a process builds the same few
+models again and again (every command, every simulated port)."""
+
 
 class ChainModel:
     """Rigid-body + drive + friction model of a serial chain (see module docstring)."""
@@ -94,8 +99,22 @@ class ChainModel:
 
     @cached_property
     def base(self) -> BaseParameters:
-        """Base parameters (Gautier's QR; names, formulas, K, B)."""
-        return compute_base(self, self.known_zero)
+        """Base parameters (Gautier's QR; names, formulas, K, B: read-only arrays)."""
+        d = self.description
+        key = (d.joints, tuple(float(g) for g in d.gravity), tuple(self.param_names),
+               tuple(self.known_zero))  # fmt: skip
+        try:
+            found = _BASES.get(key)
+        except TypeError:  # an unhashable joint field: no sharing
+            key, found = None, None
+        if found is None:
+            found = compute_base(self, self.known_zero)
+            found.K.flags.writeable = found.B.flags.writeable = False
+            if key is not None:
+                if len(_BASES) >= 64:
+                    _BASES.clear()
+                _BASES[key] = found
+        return found
 
     def base_regressor(self, q, qd, qdd) -> np.ndarray:
         """(N, n, b) regressor of the base parameters: tau = base_regressor @ base.values."""

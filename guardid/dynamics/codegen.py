@@ -9,7 +9,9 @@ per sample), which gives both the vectorised regressor and the fast single-sampl
 
 from __future__ import annotations
 
+import functools
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -237,12 +239,47 @@ def _link_wrench_columns(em: Emitter, w, wd, acc):
 def compile_source(src: str, name: str, namespace: dict):
     """Exec generated source and return the function ``name``."""
     ns = dict(namespace)
-    exec(compile(src, f"<guardid generated {name}>", "exec"), ns)  # noqa: S102
+    exec(_code(src, name), ns)  # noqa: S102
     return ns[name]
+
+
+@functools.lru_cache(maxsize=64)
+def _code(src: str, name: str):
+    """The compiled code of ``src`` (a process builds the same few models again and again:
+    every command loads its robot, and the test suite runs hundreds of commands)."""
+    return compile(src, f"<guardid generated {name}>", "exec")
+
+
+class _KJoint(NamedTuple):
+    """What the generated code reads of a joint."""
+
+    type: str
+    dh: object
+
+
+class _Kinematics(NamedTuple):
+    """What the generated code reads of a chain (hashable: the key of the sources' cache)."""
+
+    joints: tuple
+    gravity: tuple
+
+    @property
+    def n_dof(self) -> int:
+        return len(self.joints)
+
+    @classmethod
+    def of(cls, chain: ChainDescription) -> _Kinematics:
+        joints = tuple(_KJoint(j.type, j.dh) for j in chain.joints)
+        return cls(joints, tuple(float(g) for g in chain.gravity))
 
 
 def vector_regressor_source(chain: ChainDescription) -> str:
     """Source of ``rigid_regressor(q, qd, qdd, out)`` on (N, n) arrays, out (N, n, 10n)."""
+    return _vector_regressor_source(_Kinematics.of(chain))
+
+
+@functools.lru_cache(maxsize=32)
+def _vector_regressor_source(chain: _Kinematics) -> str:
     n = chain.n_dof
     em = Emitter()
     names = [[f"{v}{j}" for j in range(n)] for v in ("q", "qd", "qdd")]
@@ -267,6 +304,16 @@ def fast_sources(
     inertia or None; it adds p[idx] u u^T to M with u = ``extra_vectors[j]`` (n,) (constant;
     default e_j: M[j, j] only). Friction is not part of either function.
     """
+    vectors = None if extra_vectors is None else tuple(_floats(u) for u in extra_vectors)
+    return _fast_sources(_Kinematics.of(chain), tuple(extra_inertia), vectors)
+
+
+def _floats(u) -> tuple | None:
+    return None if u is None else tuple(float(x) for x in u)
+
+
+@functools.lru_cache(maxsize=32)
+def _fast_sources(chain: _Kinematics, extra_inertia: tuple, extra_vectors: tuple | None) -> str:
     n = chain.n_dof
     qn = [f"q{j}" for j in range(n)]
     unpack_q = f"    {', '.join(qn)}, = q.tolist() if isinstance(q, ndarray) else q"

@@ -154,7 +154,7 @@ def robot_mapping(description) -> dict | None:
         return None
     try:
         with open(source, encoding="utf-8") as f:
-            return yaml.safe_load(f)
+            return yaml.load(f, Loader=SAFE_LOADER)
     except (OSError, yaml.YAMLError):
         return None
 
