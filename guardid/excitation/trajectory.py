@@ -19,6 +19,7 @@ import numpy as np
 import yaml
 
 from guardid.errors import ConfigError
+from guardid.yaml_load import safe_load
 
 KINDS: dict[str, type[Trajectory]] = {}
 
@@ -111,7 +112,7 @@ def read_yaml(path) -> dict:
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read: {exc.strerror or exc}") from None
     try:
-        data = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+        data = safe_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark is not None else ""

@@ -33,12 +33,12 @@ from guardid.errors import LogFormatError, LogWarning
 from guardid.log import csvrows
 from guardid.log.csvlog import KNOWN_LOG_VERSIONS, LOG_VERSION_KEY, per_joint_column
 from guardid.log.numeric import RowError, decimals_of, parse_block, parse_lines
+from guardid.yaml_load import safe_load
 
 BLOCK_BYTES = 1 << 18  #: bytes read and parsed at a time (256 kB: the work arrays stay in cache)
 _GZIP_MAGIC = b"\x1f\x8b"
 _BOM = b"\xef\xbb\xbf"  #: UTF-8 byte-order mark (some editors write it)
 _OTHER_DELIMITERS = {"\t": "tabs", ";": "semicolons"}
-_YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml when built with it
 _LOG = logging.getLogger("guardid.log")
 
 
@@ -441,7 +441,7 @@ def _comment_start(buf: bytes) -> int | None:
 
 def _yaml(path: Path, lines: list[str], what: str) -> dict:
     try:
-        value = yaml.load("\n".join(lines), Loader=_YAML_LOADER) if lines else {}
+        value = safe_load("\n".join(lines)) if lines else {}
     except yaml.YAMLError as exc:
         raise LogFormatError(f"{path}: {what}: invalid YAML: {str(exc).splitlines()[0]}") from None
     if not isinstance(value, dict):

@@ -27,15 +27,13 @@ from guardid.robot.description import (
     Sensor,
 )
 from guardid.robot.validate import Checker
+from guardid.yaml_load import safe_load
 
 SHIPPED = ("guard", "planar2", "flexlink", "dfki_double_pendulum")
 DEFAULT_SAMPLE_PERIOD = 0.015  # s
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)  # m/s^2
 DEFAULT_VOLTAGE_SENSOR = Sensor(range=15.0, adc_bits=10, noise=0.01)  # V, bits, V
 """Voltage sensor assumed for a joint with a drive when ``voltage_sensor`` is omitted."""
-_YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-"""libyaml's safe loader when PyYAML has it: the documents of ``yaml.safe_load``, several
-times faster (every command loads its robot)."""
 
 
 def shipped_path(name: str) -> Path:
@@ -73,7 +71,7 @@ def load_robot(spec: str | Path) -> ChainDescription | FlexibleLinkDescription:
     except OSError as exc:
         raise ConfigError(f"{path.name}: cannot read: {exc.strerror or exc}") from None
     try:
-        data = yaml.load(text, Loader=_YAML_LOADER)
+        data = safe_load(text)
     except RecursionError:
         raise ConfigError(f"{path.name}: invalid YAML (nested too deeply)") from None
     except yaml.YAMLError as exc:
