@@ -24,6 +24,8 @@ from guardid.cli import main as cli
 from guardid.firmware.avr_sim.build import BOOTLOADERS, missing_toolchain, read_ihex
 from guardid.flash import BOARDS
 from guardid.flash.avrdude import AvrdudeError, explain
+from guardid.link import board
+from guardid.link.session import RetryPolicy
 
 MISSING = missing_toolchain() + [
     f"arduino-core-avr ({path})" for _, path in BOOTLOADERS.values() if not path.is_file()
@@ -35,6 +37,18 @@ NEEDS_FLASH = pytest.mark.skipif(
     reason=f"needs {', '.join(MISSING)} (apt-get install avrdude arduino-core-avr gcc-avr "
     "avr-libc binutils-avr simavr libsimavr-dev)",
 )
+
+
+@pytest.fixture
+def patient_boot(monkeypatch):
+    """The simulated MCU boots on the wall clock (its boot loader's wait is real time, as on
+    a board), but simavr, on a host starved of CPU, runs slower than the wall clock: its
+    firmware answers later than a board's would. Here the host's HELLO resends after a reset
+    wait up to about 30 s instead of a board's 4.75 s (:data:`guardid.link.board.BOOT_RETRY`,
+    its first waits unchanged): how long the host waits, not what it checks (a CI run beside
+    two CPU-bound processes failed with "no answer to HELLO after 6 attempts (4.75 s)")."""
+    slow = RetryPolicy(attempts=32, first_wait_s=0.25, backoff=2.0, max_wait_s=1.0)
+    monkeypatch.setattr(board, "BOOT_RETRY", slow)
 
 
 def _rows(path) -> list[str]:
@@ -146,7 +160,9 @@ def optiboot_pty():
 
 
 @NEEDS_FLASH
-def test_flash_through_optiboot_then_a_capture_on_the_same_pty(optiboot_pty, tmp_path):
+def test_flash_through_optiboot_then_a_capture_on_the_same_pty(
+    optiboot_pty, tmp_path, patient_boot
+):
     """avrdude writes and verifies, the simulated flash holds the image avr-objcopy made
     of the ELF, INFO reports the build's id, and a 4 s capture on the pty follows firmware=avr's
     row for row."""
@@ -174,7 +190,7 @@ def test_flash_through_optiboot_then_a_capture_on_the_same_pty(optiboot_pty, tmp
 
 
 @NEEDS_FLASH
-def test_fake_port_cli_stk500v2_flash_then_capture(tmp_path):
+def test_fake_port_cli_stk500v2_flash_then_capture(tmp_path, patient_boot):
     """guardid fake-port --firmware avr --bootloader stk500v2: flash --board mega, then a
     short capture on the same pty, row for row that of firmware=avr on the ATmega2560."""
     runner = CliRunner()
