@@ -28,8 +28,10 @@ Sets: default60, tracking60 (--base-freq 0.2 --harmonics 3), slow60 (--base-freq
 --harmonics 4), schroeder60 (--kind schroeder), sines60 (--kind sines), modified60 (the
 default excitation on bench/robots/guard_modified.yaml: heavier tilt arm, +50 % friction, pan
 gear 400), default300, schroeder300, default1200, schroeder1200 ("all": in this order, the
-short ones first). Not in "all": fast120 (--base-freq 0.25 --harmonics 5, 120 s), an
-excitation outside the tuned sets.
+short ones first). Not in "all" (outside the tuned sets): fast120, fast600, fast1200
+(--base-freq 0.25 --harmonics 5), sines600, sines1200, and coarse60, coarse300, coarse1200
+(the default excitation on bench/robots/guard_coarse.yaml: the guard with an encoder four
+times coarser, 12 counts per motor revolution).
 """
 
 from __future__ import annotations
@@ -73,8 +75,15 @@ SETS["modified60"] = Set((), 60.0, str(MODIFIED))
 for _length in (300, 1200):
     for _name in ("default", "schroeder"):
         SETS[f"{_name}{_length}"] = Set(_EXCITATIONS[_name], float(_length))
-EXTRA_SETS: dict[str, Set] = {"fast120": Set(("--base-freq", "0.25", "--harmonics", "5"), 120.0)}
-"""Sets outside issue 27's list (not in "all"): the check on an excitation nobody tuned on."""
+COARSE = MODIFIED.parent / "guard_coarse.yaml"
+_FAST = ("--base-freq", "0.25", "--harmonics", "5")
+EXTRA_SETS: dict[str, Set] = {
+    **{f"fast{n}": Set(_FAST, float(n)) for n in (120, 600, 1200)},
+    **{f"sines{n}": Set(_EXCITATIONS["sines"], float(n)) for n in (600, 1200)},
+    **{f"coarse{n}": Set((), float(n), str(COARSE)) for n in (60, 300, 1200)},
+}
+"""Sets outside issue 27's list (not in "all"): excitations, lengths and an encoder nobody
+tuned on (docs/std_residuals.md, "Sets nobody tuned on")."""
 
 
 def _guardid(*args: str) -> str | None:
