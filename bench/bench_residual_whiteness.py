@@ -29,8 +29,9 @@ from bench_std_check import EXTRA_SETS, SETS, truth_values
 
 from guardid.dynamics import build_model
 from guardid.estimators import WeightedLeastSquares
+from guardid.identify.equation import free_columns
 from guardid.identify.pipeline import _signals, prepared_runs
-from guardid.identify.rows import free_columns, stacked_rows
+from guardid.identify.rows import stacked_rows
 from guardid.identify.runs import load_run
 from guardid.robot import load_robot
 

@@ -17,7 +17,8 @@ from guardid.conditioning import momentum as mom
 from guardid.conditioning.options import ConditioningOptions
 from guardid.dynamics import build_model
 from guardid.errors import ConfigError
-from guardid.identify.rows import drive_gain, free_columns, position_limits, stacked_rows
+from guardid.identify.equation import drive_gain, free_columns, position_limits
+from guardid.identify.rows import stacked_rows
 from guardid.plant.plant import Plant
 from guardid.robot import load_robot
 
@@ -285,7 +286,7 @@ def test_rows_of_other_positions_line_up_with_the_measured_ones(plant_run):
     """``momentum_rows_of`` (instruments from a simulated run) on the measured positions
     themselves gives the measured rows' regressor; on the true positions rows close to them
     (the same cuts and filter; the difference is the quantisation)."""
-    from guardid.identify.rows import momentum_rows_of
+    from guardid.identify.momentum_rows import momentum_rows_of
 
     t, q, _, _, q_meas, i_meas = plant_run
     desc = load_robot("guard")

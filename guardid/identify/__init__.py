@@ -24,7 +24,7 @@ _WHERE = {
     "Identification": "pipeline",
     "IdentifyOptions": "pipeline",
     "MethodResult": "pipeline",
-    "identification_rows": "pipeline",
+    "identification_rows": "rows",
     "identify": "pipeline",
     "run_from_arrays": "pipeline",
     "Run": "runs",

@@ -24,15 +24,9 @@ from guardid.dynamics import build_model
 from guardid.errors import GuardidError
 from guardid.estimators import LeastSquares, d_tau
 from guardid.identify.electrical import MotorEstimate, identify_motor_runs, motor_doubts
+from guardid.identify.equation import free_columns
 from guardid.identify.methods import FitRows, MethodFit, methods_for
-from guardid.identify.rows import (  # noqa: F401  (re-exported)
-    STICTION_GUARD_PERIODS,
-    Rows,
-    free_columns,
-    identification_rows,
-    rows_summary,
-    stacked_rows,
-)
+from guardid.identify.rows import rows_summary, stacked_rows
 from guardid.identify.runs import Run
 from guardid.identify.trust import impossible_values, mark_not_converged, stacked_error
 from guardid.identify.untrusted import trust_problems

@@ -6,7 +6,8 @@ import numpy as np
 
 from guardid.errors import GuardidError
 from guardid.estimators import d_tau
-from guardid.identify.pipeline import MethodResult, identify, stacked_rows
+from guardid.identify.pipeline import MethodResult, identify
+from guardid.identify.rows import stacked_rows
 from guardid.physical.fit import BIAS_PER_STD, ConsistentFit, fit_consistent
 
 METHOD = "consistent"
