@@ -198,7 +198,8 @@ def test_measured_run_within_a_few_std(plant_run):
     """The same run as the encoder and the ADC report it (quantised, no noise), identified
     with identify's defaults: the momentum form is chosen, and WLS's truth lies within 3 of
     its std for every parameter."""
-    from guardid.identify.pipeline import IdentifyOptions, identify, run_from_arrays
+    from guardid.identify.pipeline import IdentifyOptions, identify
+    from guardid.identify.runs import run_from_arrays
 
     t, _, _, _, q_meas, i_meas = plant_run
     desc = load_robot("guard")
@@ -361,7 +362,8 @@ def test_chunked_rows_equal_the_whole_log_filtered_at_once(plant_run, monkeypatc
 def test_chunked_identification_equals_the_unchunked_one(plant_run, monkeypatch):
     """identify's estimates and their std with chunks of 61 ticks equal those with the whole
     log in one chunk (to 1e-9 relative: the same rows to 1e-12, through one solve)."""
-    from guardid.identify.pipeline import IdentifyOptions, identify, run_from_arrays
+    from guardid.identify.pipeline import IdentifyOptions, identify
+    from guardid.identify.runs import run_from_arrays
 
     t, _, _, _, q_meas, i_meas = plant_run
     desc = load_robot("guard")

@@ -26,7 +26,7 @@ _WHERE = {
     "MethodResult": "pipeline",
     "identification_rows": "rows",
     "identify": "pipeline",
-    "run_from_arrays": "pipeline",
+    "run_from_arrays": "runs",
     "Run": "runs",
     "load_run": "runs",
 }

@@ -274,7 +274,7 @@ def validate_runs(runs, names, description, sets, options, current_units=False, 
     ``scores``, ``preds`` ((run, label) -> predicted effort) and ``head``.
     """
     from guardid.identify.checks import call_naming_logs
-    from guardid.identify.pipeline import current_on_adc_levels
+    from guardid.identify.prepare import current_on_adc_levels
     from guardid.identify.rows import stacked_rows
     from guardid.identify.segments import split_runs
 

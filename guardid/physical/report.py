@@ -47,7 +47,7 @@ def identify_consistent(runs, description, options=None):
     Same arguments: a list of :class:`~guardid.identify.runs.Run`, the description and the
     :class:`~guardid.identify.pipeline.IdentifyOptions`.
     """
-    from guardid.identify.pipeline import prepared_runs
+    from guardid.identify.prepare import prepared_runs
 
     result = identify(runs, description, options)
     runs, _ = prepared_runs(runs, description, options)  # the runs identify conditioned
