@@ -422,7 +422,7 @@ def _bootstrap(result, runs, description, options, k, status, log):
     if why:
         click.echo(f"warning: {log}: --quantisation-bootstrap cannot run: {why}", err=True)
         return ""
-    from guardid.identify.pipeline import reference_method
+    from guardid.identify.untrusted import reference_method
 
     m = reference_method(result.results)
     k = result.results[m].settings["quantisation_bootstrap"]["replicas"]

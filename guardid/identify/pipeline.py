@@ -29,19 +29,9 @@ from guardid.identify.methods import FitRows, MethodFit, methods_for
 from guardid.identify.prepare import effort_is_torque, prepared_runs, run_signals
 from guardid.identify.rows import rows_summary, stacked_rows
 from guardid.identify.trust import impossible_values, mark_not_converged, stacked_error
-from guardid.identify.untrusted import trust_problems
+from guardid.identify.untrusted import reference_method, trust_problems
 
 POOR_REL_STD_PCT = 10.0  #: warn when a parameter's relative standard deviation exceeds this
-REFERENCE_METHODS = ("wls", "ls")
-"""The method whose estimate and std a report's verdict uses: the first of these that ran.
-WLS, because its std matches the spread of its estimates over seeds on the guard robot's
-closed loop (``bench/bench_std_check.py``, 100 seeds: spread / std 0.84-1.11 on the
-default and the tracking excitation, truth within 3 std in >= 99.7 % of pairs), where LS's
-pooled noise level makes the pan parameters' std up to 1.35x too large and the tilt's up to
-1.35x too small (its two joints' residuals differ by a factor of several). IV and DIDIM
-are not in the list: they need a guardid log with setpoints and the robot's controller;
-IV meets the same bars there (its biases up to 0.2 std smaller on the tracking
-excitation), DIDIM's std is up to 1.4x too small on it."""
 
 
 @dataclass(frozen=True)
@@ -87,14 +77,6 @@ class IdentifyOptions:
         m = self.methods
         m = [x.strip() for x in m.split(",") if x.strip()] if isinstance(m, str) else m
         object.__setattr__(self, "methods", tuple(m))
-
-
-def reference_method(results) -> str | None:
-    """Name of the method the verdict uses (:data:`REFERENCE_METHODS`, then any with std)."""
-    for m in REFERENCE_METHODS:
-        if m in results and results[m].std is not None:
-            return m
-    return next((m for m, r in results.items() if r.std is not None), None)
 
 
 @dataclass
@@ -250,28 +232,6 @@ def _not_converged(results, ls) -> list[str]:
             t = r.fitted_on.cond.t[r.fitted_on.cond.mask]
             out += mark_not_converged({"ls": _result("ls", MethodFit.of(ref), A, y, t), m: r}, ref)
     return out
-
-
-def closed_loop_rows(rows: FitRows):
-    """The rows IV and DIDIM fit: they condition their simulated closed loop like the
-    measured run, row for row, in the acceleration form (the momentum form's per-joint cuts
-    follow the measured run's stops; lining a simulated run up with them is not wired yet).
-    ``rows.rows`` when already in that form; else the runs conditioned again in it, once per
-    call of :func:`identify` (kept on ``rows.rows``)."""
-    if rows.rows.options.equation == "acceleration":
-        return rows.rows
-    cached = rows.rows.acceleration_rows
-    if cached is None:
-        options = rows.options.conditioning or ConditioningOptions()
-        options = replace(options, equation="acceleration", order=None)
-        cached = stacked_rows(
-            [run_signals(r, rows.runs) for r in rows.runs], rows.description, options,
-            in_current_units=rows.options.in_current_units,
-            effort_is_torque=rows.effort_is_torque,
-            highest_harmonic_hz=rows.runs[0].highest_harmonic_hz,
-        )  # fmt: skip
-        rows.rows.acceleration_rows = cached
-    return cached
 
 
 def _result_of(rows: FitRows, results, options, torque) -> Identification:

@@ -24,6 +24,7 @@ from guardid.identify.acceleration_rows import acceleration_rows
 from guardid.identify.cutoff import CutoffChoice
 from guardid.identify.equation import free_columns, resolve_equation
 from guardid.identify.momentum_rows import momentum_rows
+from guardid.identify.prepare import run_signals
 
 MOST_ROWS_DROPPED = 0.25
 """Warn when fewer than this fraction of the conditioned samples are usable [-] (a robot with
@@ -44,7 +45,7 @@ class Rows:
     ``runs``: per run its own conditioned signals (the momentum form: what
     :func:`~guardid.identify.momentum_rows.momentum_rows_of` needs); ``acceleration_rows``:
     the same runs in the acceleration form, made once when a method fits only in it (iv,
-    didim: :func:`guardid.identify.pipeline.closed_loop_rows`), else None;
+    didim: :func:`closed_loop_rows`), else None;
     ``column_noise``: the encoder rounding's noise in the identified columns of ``A`` and
     in ``y`` (the momentum form,
     :func:`~guardid.identify.momentum_rows.quantisation_noise_of`), which LS and WLS
@@ -136,6 +137,29 @@ def _stacked(As, ys, free):
             "the run is too short or the joints hardly move"
         )
     return A, y
+
+
+def closed_loop_rows(rows):
+    """The rows IV and DIDIM fit: they condition their simulated closed loop like the
+    measured run, row for row, in the acceleration form (the momentum form's per-joint cuts
+    follow the measured run's stops; lining a simulated run up with them is not wired yet).
+    ``rows.rows`` when already in that form; else the runs conditioned again in it, once per
+    call of :func:`~guardid.identify.pipeline.identify` (kept on ``rows.rows``). ``rows``:
+    the :class:`~guardid.identify.methods.FitRows` the methods are given."""
+    if rows.rows.options.equation == "acceleration":
+        return rows.rows
+    cached = rows.rows.acceleration_rows
+    if cached is None:
+        options = rows.options.conditioning or ConditioningOptions()
+        options = replace(options, equation="acceleration", order=None)
+        cached = stacked_rows(
+            [run_signals(r, rows.runs) for r in rows.runs], rows.description, options,
+            in_current_units=rows.options.in_current_units,
+            effort_is_torque=rows.effort_is_torque,
+            highest_harmonic_hz=rows.runs[0].highest_harmonic_hz,
+        )  # fmt: skip
+        rows.rows.acceleration_rows = cached
+    return cached
 
 
 def predicted_effort(cond, model, theta) -> np.ndarray:
