@@ -1,4 +1,4 @@
-"""Stage 3f of the identification path: the runs' rows in the acceleration form.
+"""Identification path, acceleration form: every run's rows, cut-off and filter chosen.
 
 Takes the runs (t [s] (N,), q (N, n) [rad | m], effort (N, n) [A | N m | N][, measured qd])
 and the options, equation form resolved (:func:`guardid.identify.equation.resolve_equation`);

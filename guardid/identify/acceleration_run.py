@@ -1,4 +1,4 @@
-"""Stage 3b of the identification path: one run conditioned in the acceleration form.
+"""Identification path, acceleration form: one run conditioned, and its equation rows.
 
 Takes a run (t [s] (N,), q (N, n) [rad | m], effort (N, n) [A | N m | N][, measured qd]),
 the options and a cut-off [Hz]; gives its conditioned signals

@@ -1,4 +1,4 @@
-"""Stage 3c of the identification path: the acceleration form's cut-off candidates scored.
+"""Identification path, acceleration form: the cut-off candidates scored.
 
 Takes the runs, the options and the candidate cut-offs [Hz] that
 :func:`guardid.identify.cutoff.choose_cutoff_cv` proposes; gives per candidate the

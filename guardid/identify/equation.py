@@ -1,5 +1,5 @@
-"""Stage 3a of the identification path: the equation the rows take, before any run is
-conditioned (docs/CONTRACTS.md, "guardid.identify").
+"""Identification path: the equation the rows take, chosen before any run is conditioned
+(docs/CONTRACTS.md, "guardid.identify", step 3).
 
 Takes the robot description, the runs (t [s], q, effort[, qd]) and the
 :class:`~guardid.conditioning.options.ConditioningOptions`; gives the equation form

@@ -1,4 +1,4 @@
-"""Stage 3e of the identification path: the runs' rows in the momentum form.
+"""Identification path, momentum form: every run's rows.
 
 Takes the runs (t [s] (N,), q (N, n) [rad | m], effort (N, n) [A | N m | N][, measured qd])
 and the options, equation form resolved (:func:`guardid.identify.equation.resolve_equation`);

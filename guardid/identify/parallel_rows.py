@@ -1,4 +1,4 @@
-"""Stage 3d of the identification path: the acceleration form's parallel filter.
+"""Identification path, acceleration form: the parallel filter, chosen and applied.
 
 Takes the runs conditioned in the acceleration form (:mod:`guardid.identify.acceleration_run`)
 at the resolved cut-off [Hz]; gives the parallel filter's cut-off [Hz] chosen from the data

@@ -1,4 +1,4 @@
-"""Stage 2 of the identification path: runs -> the runs that are conditioned.
+"""Identification path, first step: runs -> the runs (segments) that are conditioned.
 
 Takes :class:`~guardid.identify.runs.Run` objects (t [s], q [rad | m], effort [A | N m | N],
 ...) and the robot description; gives the runs as :func:`guardid.identify.pipeline.identify`

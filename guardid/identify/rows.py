@@ -1,4 +1,4 @@
-"""Stage 3 of the identification path, whole: logs -> stacked identification rows.
+"""Identification path, the rows step as a whole: runs -> one form's rows -> stacked rows.
 
 runs (t [s] (N,), q (N, n), effort (N, n)[, qd]) -> the equation form
 (:mod:`guardid.identify.equation`) -> each run conditioned on its own under the same
@@ -6,7 +6,10 @@ runs (t [s] (N,), q (N, n), effort (N, n)[, qd]) -> the equation form
 :mod:`guardid.identify.acceleration_rows` with its cut-off and parallel filter chosen once
 for all runs) -> :func:`stacked_rows`: the runs' rows stacked into one :class:`Rows`
 (A (M, n, b'), y (M, n) [N m | N | effort unit], the joined conditioned signals, the
-options used, doubts), which the estimators fit (:mod:`guardid.identify.methods`).
+options used, doubts), which the estimators fit (:mod:`guardid.identify.methods`). Also
+the acceleration form's rows for IV and DIDIM beside momentum-form rows
+(:func:`closed_loop_rows`) and a model's predicted effort on either form's rows
+(:func:`predicted_effort`).
 """
 
 from __future__ import annotations
