@@ -23,7 +23,8 @@ import numpy as np
 
 from guardid.conditioning.options import ConditioningOptions
 from guardid.identify.foreign import parse_mapping
-from guardid.identify.pipeline import identified_names, stacked_rows
+from guardid.identify.pipeline import identified_names
+from guardid.identify.rows import stacked_rows
 from guardid.identify.runs import load_run
 from guardid.physical import description_with, fit_consistent
 from guardid.robot import load_robot

@@ -38,12 +38,9 @@ from guardid.conditioning.options import ConditioningOptions
 from guardid.dynamics import build_model
 from guardid.estimators import WeightedLeastSquares
 from guardid.estimators._base import as_blocks
-from guardid.identify.pipeline import (
-    IdentifyOptions,
-    current_on_adc_levels,
-    identify,
-    stacked_rows,
-)
+from guardid.identify.pipeline import IdentifyOptions, identify
+from guardid.identify.prepare import current_on_adc_levels
+from guardid.identify.rows import stacked_rows
 from guardid.identify.runs import load_run
 from guardid.robot import load_robot
 

@@ -29,8 +29,9 @@ from bench_std_check import EXTRA_SETS, SETS, truth_values
 
 from guardid.dynamics import build_model
 from guardid.estimators import WeightedLeastSquares
-from guardid.identify.pipeline import _signals, prepared_runs
-from guardid.identify.rows import free_columns, stacked_rows
+from guardid.identify.equation import free_columns
+from guardid.identify.prepare import prepared_runs, run_signals
+from guardid.identify.rows import stacked_rows
 from guardid.identify.runs import load_run
 from guardid.robot import load_robot
 
@@ -44,7 +45,7 @@ def log_rows(log: Path, robot: str):
     model = build_model(description)
     names = [model.base.names[i] for i in free_columns(model, description)]
     runs, _ = prepared_runs([load_run(str(log))], description)
-    rows = stacked_rows([_signals(r, runs) for r in runs], description, None,
+    rows = stacked_rows([run_signals(r, runs) for r in runs], description, None,
                         highest_harmonic_hz=runs[0].highest_harmonic_hz)  # fmt: skip
     c = rows.cond
     return rows.A, rows.y, c.t[c.mask], names

@@ -98,7 +98,7 @@ class IdentifyResult:
     @property
     def reference_method(self) -> str | None:
         """The method the verdict rests on (WLS when it ran, else LS, else one with std)."""
-        from guardid.identify.pipeline import reference_method
+        from guardid.identify.untrusted import reference_method
 
         return reference_method(self.identification.results)
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from guardid.conditioning.units import current_on_adc_levels
-from guardid.identify.pipeline import prepared_runs
+from guardid.identify.prepare import prepared_runs
 from guardid.identify.runs import load_run
 from guardid.robot import load_robot
 

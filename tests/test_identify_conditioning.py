@@ -13,7 +13,7 @@ from guardid.conditioning.options import ConditioningOptions
 from guardid.errors import ConfigError
 from guardid.identify import IdentifyOptions, identify, run_from_arrays
 from guardid.identify.cutoff import choose_parallel_filter, parallel_candidates
-from guardid.identify.rows import covariance_log_volume
+from guardid.identify.cutoff_scores import covariance_log_volume
 from guardid.robot import load_robot
 from guardid.robot.loader import parse_robot
 

@@ -16,12 +16,9 @@ from guardid.dynamics import build_model
 from guardid.estimators import LeastSquares, d_tau
 from guardid.identify import HopfieldSettings, IdentifyOptions, identification_rows, identify
 from guardid.identify.methods import run_hopfield
-from guardid.identify.pipeline import (
-    current_on_adc_levels,
-    identified_names,
-    trajectory_highest_harmonic,
-)
-from guardid.identify.runs import load_run
+from guardid.identify.pipeline import identified_names
+from guardid.identify.prepare import current_on_adc_levels
+from guardid.identify.runs import load_run, trajectory_highest_harmonic
 from guardid.log import read_log
 from guardid.robot import load_robot
 

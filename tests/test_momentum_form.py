@@ -17,7 +17,8 @@ from guardid.conditioning import momentum as mom
 from guardid.conditioning.options import ConditioningOptions
 from guardid.dynamics import build_model
 from guardid.errors import ConfigError
-from guardid.identify.rows import drive_gain, free_columns, position_limits, stacked_rows
+from guardid.identify.equation import drive_gain, free_columns, position_limits
+from guardid.identify.rows import stacked_rows
 from guardid.plant.plant import Plant
 from guardid.robot import load_robot
 
@@ -197,7 +198,8 @@ def test_measured_run_within_a_few_std(plant_run):
     """The same run as the encoder and the ADC report it (quantised, no noise), identified
     with identify's defaults: the momentum form is chosen, and WLS's truth lies within 3 of
     its std for every parameter."""
-    from guardid.identify.pipeline import IdentifyOptions, identify, run_from_arrays
+    from guardid.identify.pipeline import IdentifyOptions, identify
+    from guardid.identify.runs import run_from_arrays
 
     t, _, _, _, q_meas, i_meas = plant_run
     desc = load_robot("guard")
@@ -285,7 +287,7 @@ def test_rows_of_other_positions_line_up_with_the_measured_ones(plant_run):
     """``momentum_rows_of`` (instruments from a simulated run) on the measured positions
     themselves gives the measured rows' regressor; on the true positions rows close to them
     (the same cuts and filter; the difference is the quantisation)."""
-    from guardid.identify.rows import momentum_rows_of
+    from guardid.identify.momentum_rows import momentum_rows_of
 
     t, q, _, _, q_meas, i_meas = plant_run
     desc = load_robot("guard")
@@ -360,7 +362,8 @@ def test_chunked_rows_equal_the_whole_log_filtered_at_once(plant_run, monkeypatc
 def test_chunked_identification_equals_the_unchunked_one(plant_run, monkeypatch):
     """identify's estimates and their std with chunks of 61 ticks equal those with the whole
     log in one chunk (to 1e-9 relative: the same rows to 1e-12, through one solve)."""
-    from guardid.identify.pipeline import IdentifyOptions, identify, run_from_arrays
+    from guardid.identify.pipeline import IdentifyOptions, identify
+    from guardid.identify.runs import run_from_arrays
 
     t, _, _, _, q_meas, i_meas = plant_run
     desc = load_robot("guard")

@@ -18,8 +18,8 @@ from test_mlp import linear_model
 from guardid.estimators import MLP
 from guardid.estimators.mlp import PLATEAU_REL, last_improvement, loss_plateau
 from guardid.identify import IdentifyOptions, identify, run_from_arrays
-from guardid.identify.pipeline import reference_method
 from guardid.identify.report import read_params, table, to_yaml_dict
+from guardid.identify.untrusted import reference_method
 from guardid.identify.validation import params_sets
 from guardid.report.html import parameter_table, verdict
 from guardid.robot import load_robot

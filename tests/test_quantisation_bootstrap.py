@@ -43,7 +43,8 @@ def test_known_bias_through_the_fit(gap_guard_captures, monkeypatch):
 
     import guardid.uncertainty.bootstrap as bootstrap_module
     import guardid.uncertainty.replicas as replicas_module
-    from guardid.identify.pipeline import IdentifyOptions, current_on_adc_levels, identify
+    from guardid.identify.pipeline import IdentifyOptions, identify
+    from guardid.identify.prepare import current_on_adc_levels
     from guardid.identify.runs import load_run
     from guardid.uncertainty import BootstrapOptions, quantisation_bootstrap
 

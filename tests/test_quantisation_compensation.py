@@ -21,7 +21,8 @@ from guardid.conditioning.options import ConditioningOptions
 from guardid.conditioning.units import counts_per_joint_rev
 from guardid.dynamics import build_model
 from guardid.estimators import ColumnNoise, LeastSquares, WeightedLeastSquares
-from guardid.identify.rows import drive_gain, stacked_rows
+from guardid.identify.equation import drive_gain
+from guardid.identify.rows import stacked_rows
 from guardid.robot import load_robot
 
 

@@ -3,7 +3,8 @@ method with standard deviations (issue 19, deliverable 2)."""
 
 import numpy as np
 
-from guardid.identify.pipeline import MethodResult, reference_method
+from guardid.identify.pipeline import MethodResult
+from guardid.identify.untrusted import reference_method
 
 
 def _result(method, std=True):

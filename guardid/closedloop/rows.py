@@ -1,9 +1,9 @@
 """The simulated closed loop's regressor on the measured identification rows.
 
 The simulated positions of each run go through the measured run's conditioning
-(:func:`guardid.identify.rows.condition_run` with the resolved options: the same cut-off,
-filter, decimation and friction-column filter; no fallback), and the rows the measured
-run kept (its mask) are taken, so that Z lines up with the measured A row for row.
+(:func:`guardid.identify.acceleration_run.condition_run` with the resolved options: the
+same cut-off, filter, decimation and friction-column filter; no fallback), and the rows the
+measured run kept (its mask) are taken, so that Z lines up with the measured A row for row.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from guardid.closedloop.simulate import (
     stiffness_substeps,
 )
 from guardid.errors import GuardidError
-from guardid.identify.rows import condition_run
+from guardid.identify.acceleration_run import condition_run
 
 
 @dataclass

@@ -87,7 +87,7 @@ def _lean(run, description, methods, report_path, bootstrap=False):
     """``run`` without the columns this identify will not read, so they do not stay in
     memory (about 8 MB per hour of log and per column pair): ``counts`` once the log's
     joints are in the robot's order (they serve only to check the angles when the
-    columns are reordered, :func:`~guardid.identify.pipeline.prepared_runs`), ``setpoint``
+    columns are reordered, :func:`~guardid.identify.prepare.prepared_runs`), ``setpoint``
     unless a closed-loop method (iv, didim), the --report's replay or the quantisation
     bootstrap uses it."""
     from dataclasses import replace
@@ -303,7 +303,7 @@ def identify(
     if cv:
         _cross_validate(logs, runs, description, options)
         return
-    from guardid.identify.pipeline import current_on_adc_levels
+    from guardid.identify.prepare import current_on_adc_levels
 
     runs = [_lean(r, description, methods, report_path, bootstrap_k > 0) for r in runs]
     runs = [current_on_adc_levels(r, description, in_place=True) for r in runs]  # for all
@@ -317,7 +317,7 @@ def identify(
     from guardid.identify.checks import call_naming_logs
 
     result = call_naming_logs(logs, run_identify, runs, description, options)  # names gaps
-    from guardid.identify.pipeline import prepared_runs
+    from guardid.identify.prepare import prepared_runs
 
     whole, (runs, _) = runs, prepared_runs(runs, description, options)  # as identify split them
     if result.untrusted and not force:
@@ -422,7 +422,7 @@ def _bootstrap(result, runs, description, options, k, status, log):
     if why:
         click.echo(f"warning: {log}: --quantisation-bootstrap cannot run: {why}", err=True)
         return ""
-    from guardid.identify.pipeline import reference_method
+    from guardid.identify.untrusted import reference_method
 
     m = reference_method(result.results)
     k = result.results[m].settings["quantisation_bootstrap"]["replicas"]

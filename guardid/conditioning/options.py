@@ -1,7 +1,7 @@
 """One object for every conditioning choice: :class:`ConditioningOptions`.
 
 ``None`` in a field means "choose from the data" (see :mod:`guardid.identify.cutoff` for the
-cut-off and :func:`guardid.identify.pipeline.identification_rows` for the rest). A params
+cut-off and :func:`guardid.identify.rows.stacked_rows` for the rest). A params
 file records the options that were *used* (every automatic choice resolved to its value),
 so that ``guardid validate`` can score any parameter set under exactly that conditioning.
 """
@@ -27,8 +27,9 @@ class ConditioningOptions:
         5 % of the peak speed for sign friction, 0 (keep every row) for smooth friction models.
     stiction_guard_s : also drop rows within this time of such a sample [s]; None = the span
         holding 95 % of the low-pass's impulse response for guardid logs (stick/slip; 1.04
-        cut-off periods at order 4, :data:`guardid.identify.rows.STICTION_GUARD_SHARE`), 0
-        for measured-torque logs.
+        cut-off periods at order 4,
+        :data:`guardid.identify.acceleration_run.STICTION_GUARD_SHARE`), 0 for
+        measured-torque logs.
     flat_is_stuck : flag samples without an encoder count in the period (momentum form: in
         either period next to the sample); None = guardid logs.
     parallel_filter_hz : Gautier's parallel filter on the regressor and the torque [Hz];

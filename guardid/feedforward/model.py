@@ -100,8 +100,8 @@ def load_feedforward(path: str, description) -> FeedforwardModel:
     parameters of its reference method (WLS, else LS, else the first with a std), its motors'
     R and Ke (the robot description's where it has none). ConfigError (one line) when it does
     not fit ``description``."""
-    from guardid.identify.pipeline import REFERENCE_METHODS
     from guardid.identify.report import read_params
+    from guardid.identify.untrusted import REFERENCE_METHODS
     from guardid.identify.validation import params_sets
 
     data = read_params(path)

@@ -24,9 +24,9 @@ _WHERE = {
     "Identification": "pipeline",
     "IdentifyOptions": "pipeline",
     "MethodResult": "pipeline",
-    "identification_rows": "pipeline",
+    "identification_rows": "rows",
     "identify": "pipeline",
-    "run_from_arrays": "pipeline",
+    "run_from_arrays": "runs",
     "Run": "runs",
     "load_run": "runs",
 }

@@ -41,7 +41,7 @@ def fold_scores(runs, description, options):
             values = _all_base_values(description, nominal)
             values.update(dict(zip(result.names, result.results[m].theta, strict=True)))
             sets.append(ParameterSet(m.upper(), values, description))
-        from guardid.identify.pipeline import current_on_adc_levels
+        from guardid.identify.prepare import current_on_adc_levels
 
         held = current_on_adc_levels(held, description)  # scored on what the fit reads
         parts = split_runs([held], cutoff_hz).runs  # the training runs' rule

@@ -103,7 +103,7 @@ def choose_cutoff_cv(runs, score_fn, fs_hz: float, highest_harmonic_hz=None) -> 
     ``runs``: (t [s], q, effort) per run. ``score_fn(candidates, blocks_per_run)`` returns,
     per candidate, (held-out relative rms error, full-data estimate, friction columns filtered)
     (see
-    :func:`guardid.identify.pipeline.cutoff_scores`). ``fs_hz``: the logs' sample rate [Hz].
+    :func:`guardid.identify.cutoff_scores.cutoff_scores`). ``fs_hz``: the logs' sample rate [Hz].
     """
     bandwidth = motion_bandwidth(runs, highest_harmonic_hz)
     top = MAX_NYQUIST_FRACTION * 0.5 * fs_hz

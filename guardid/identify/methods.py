@@ -287,7 +287,7 @@ class _ClosedLoop(Method):
 
     def fit(self, rows):
         from guardid.closedloop import fit_closed_loop
-        from guardid.identify.pipeline import closed_loop_rows
+        from guardid.identify.rows import closed_loop_rows
 
         first = rows.rows.acceleration_rows is None
         own = closed_loop_rows(rows)  # the acceleration form (module docstring there)

@@ -1,7 +1,8 @@
 """The identification pipeline, stage by stage (docs/CONTRACTS.md):
 
-runs (:class:`~guardid.identify.runs.Run`) -> segments, conditioned signals and equation
-rows (:func:`~guardid.identify.rows.stacked_rows`) -> the estimators named in the options
+runs (:class:`~guardid.identify.runs.Run`) -> prepared runs and segments
+(:mod:`guardid.identify.prepare`) -> conditioned signals and equation rows
+(:func:`~guardid.identify.rows.stacked_rows`) -> the estimators named in the options
 (:mod:`guardid.identify.methods`, registered by name) -> result (:class:`Identification`:
 estimates with their uncertainty, checks, the motors' electrical parameters).
 
@@ -21,33 +22,16 @@ import numpy as np
 from guardid.conditioning.bandwidth import HARMONIC_FACTOR
 from guardid.conditioning.options import ConditioningOptions
 from guardid.dynamics import build_model
-from guardid.errors import GuardidError
 from guardid.estimators import LeastSquares, d_tau
 from guardid.identify.electrical import MotorEstimate, identify_motor_runs, motor_doubts
+from guardid.identify.equation import free_columns
 from guardid.identify.methods import FitRows, MethodFit, methods_for
-from guardid.identify.rows import (  # noqa: F401  (re-exported)
-    STICTION_GUARD_PERIODS,
-    Rows,
-    free_columns,
-    identification_rows,
-    rows_summary,
-    stacked_rows,
-)
-from guardid.identify.runs import Run
+from guardid.identify.prepare import effort_is_torque, prepared_runs, run_signals
+from guardid.identify.rows import rows_summary, stacked_rows
 from guardid.identify.trust import impossible_values, mark_not_converged, stacked_error
-from guardid.identify.untrusted import trust_problems
+from guardid.identify.untrusted import reference_method, trust_problems
 
 POOR_REL_STD_PCT = 10.0  #: warn when a parameter's relative standard deviation exceeds this
-REFERENCE_METHODS = ("wls", "ls")
-"""The method whose estimate and std a report's verdict uses: the first of these that ran.
-WLS, because its std matches the spread of its estimates over seeds on the guard robot's
-closed loop (``bench/bench_std_check.py``, 100 seeds: spread / std 0.84-1.11 on the
-default and the tracking excitation, truth within 3 std in >= 99.7 % of pairs), where LS's
-pooled noise level makes the pan parameters' std up to 1.35x too large and the tilt's up to
-1.35x too small (its two joints' residuals differ by a factor of several). IV and DIDIM
-are not in the list: they need a guardid log with setpoints and the robot's controller;
-IV meets the same bars there (its biases up to 0.2 std smaller on the tracking
-excitation), DIDIM's std is up to 1.4x too small on it."""
 
 
 @dataclass(frozen=True)
@@ -78,7 +62,8 @@ class IdentifyOptions:
     :class:`HopfieldSettings`; ``rls_lambda``: RLS forgetting factor in (0, 1];
     ``gradient_eta``: the gradient estimator's gain; ``in_current_units``: no
     current-to-torque gain (estimates in the effort's unit).
-    Whether the effort is measured torque comes with the data (:attr:`Run.torque`).
+    Whether the effort is measured torque comes with the data
+    (:attr:`~guardid.identify.runs.Run.torque`).
     """
 
     methods: tuple[str, ...] = ("ls", "wls", "rls", "hopfield")
@@ -92,14 +77,6 @@ class IdentifyOptions:
         m = self.methods
         m = [x.strip() for x in m.split(",") if x.strip()] if isinstance(m, str) else m
         object.__setattr__(self, "methods", tuple(m))
-
-
-def reference_method(results) -> str | None:
-    """Name of the method the verdict uses (:data:`REFERENCE_METHODS`, then any with std)."""
-    for m in REFERENCE_METHODS:
-        if m in results and results[m].std is not None:
-            return m
-    return next((m for m, r in results.items() if r.std is not None), None)
 
 
 @dataclass
@@ -155,50 +132,9 @@ def identified_names(description) -> tuple[str, ...]:
     return tuple(model.base.names[i] for i in free_columns(model, description))
 
 
-def trajectory_highest_harmonic(trajectory: dict | None) -> float | None:
-    """Highest frequency [Hz] of a trajectory mapping (a log header's ``trajectory``).
-
-    Fourier series: base_freq x harmonics; sums of sines / multisines: the largest
-    ``frequencies`` entry. None when unknown (then the cut-off comes from the spectrum).
-    """
-    if not isinstance(trajectory, dict):
-        return None
-    try:
-        if trajectory.get("kind") == "fourier":
-            return float(trajectory["base_freq"]) * int(trajectory["harmonics"])
-        freqs = trajectory.get("frequencies")
-        if freqs is not None:
-            return float(np.max(np.abs(np.asarray(freqs, dtype=float))))
-    except (KeyError, TypeError, ValueError):
-        return None
-    return None
-
-
-def run_from_arrays(
-    t_s,
-    q,
-    effort,
-    *,
-    torque=False,
-    voltage_v=None,
-    ticks=None,
-    setpoint=None,
-    qd=None,
-    highest_harmonic_hz=None,
-    path="<arrays>",
-) -> Run:
-    """A :class:`Run` from arrays (notebooks, simulations): t_s (N,) [s], q (N, n) [rad | m],
-    effort (N, n) motor current [A] (period means) or, with ``torque``, joint torque
-    [N m | N]; optional voltage_v (N, n) [V], ticks (N,), setpoint (N, n) [rad], qd (N, n)
-    measured velocities [rad/s | m/s], the excitation's highest harmonic [Hz]."""
-    return Run(
-        path=str(path), robot=None, ticks=ticks, t=t_s, q=q, current=effort, voltage=voltage_v,
-        torque=bool(torque), highest_harmonic_hz=highest_harmonic_hz, qd=qd, setpoint=setpoint,
-    )  # fmt: skip
-
-
 def identify(runs, description, options: IdentifyOptions | None = None) -> Identification:
-    """Identify the base parameters of ``description`` from ``runs`` (a list of :class:`Run`).
+    """Identify the base parameters of ``description`` from ``runs`` (a list of
+    :class:`~guardid.identify.runs.Run`).
 
     A run is split at its long gaps (:mod:`guardid.identify.segments`, named in the
     warnings) unless the caller split it. Each run is conditioned on its own and the
@@ -214,7 +150,7 @@ def identify(runs, description, options: IdentifyOptions | None = None) -> Ident
     """
     options = options or IdentifyOptions()
     runs, split = prepared_runs(runs, description, options)
-    torque = _effort_is_torque(runs)
+    torque = effort_is_torque(runs)
     methods = methods_for(options.methods)  # unknown names refused before any work
     for check in dict.fromkeys(m.check for m in methods if m.check is not None):
         check(options.methods, runs, description)
@@ -229,7 +165,7 @@ def identify(runs, description, options: IdentifyOptions | None = None) -> Ident
         conditioning = replace(conditioning or ConditioningOptions(), equation=forms.pop())
     # segments -> conditioned signals -> equation rows, every run on its own, rows stacked
     rows = stacked_rows(
-        [_signals(r, runs) for r in runs], description, conditioning,
+        [run_signals(r, runs) for r in runs], description, conditioning,
         in_current_units=options.in_current_units, effort_is_torque=torque,
         highest_harmonic_hz=runs[0].highest_harmonic_hz,
     )  # fmt: skip
@@ -253,105 +189,6 @@ def return_freed_memory() -> None:
     except (OSError, AttributeError, TypeError):
         return
     trim(0)
-
-
-def prepared_runs(runs, description, options: IdentifyOptions | None = None):
-    """(runs, Split or None): what :func:`identify` conditions ``runs`` as: each guardid
-    log's columns in ``description``'s joint order, the runs split at their long gaps
-    (unless the caller split them). For callers that condition the same runs again
-    (the consistent fit)."""
-    options = options or IdentifyOptions()
-    runs = [_in_joint_order(r, description) for r in runs]
-    if not runs:
-        return runs, None
-    runs = [current_on_adc_levels(r, description) for r in runs]
-    return _segments(runs, options)
-
-
-def current_on_adc_levels(run, description, in_place: bool = False):
-    """``run`` with its motor currents on each joint's ADC levels when they are those levels
-    as the telemetry rounds them (:func:`~guardid.conditioning.units.current_on_adc_levels`:
-    the rounding's error follows the motion and does not shrink with the log's length); a
-    joint whose values are not is left as it is. A copy with a new current array, or, with
-    ``in_place``, ``run`` itself changed (for a caller that owns the run's arrays, so that
-    every later stage, the tracker's replay included, reads the same currents). Levels
-    come back as they are: a second call changes nothing and copies nothing."""
-    from guardid.conditioning.units import current_on_adc_levels as on_levels
-    from guardid.protocol.codec import SPEC
-
-    joints = getattr(description, "joints", None)
-    if run.torque or joints is None or run.current is None:
-        return run
-    (unit,) = [f.scale for f in SPEC.by_name("TELEMETRY").fields if f.name == "current"]
-    current = run.current
-    for j, joint in enumerate(joints):
-        sensor = joint.current_sensor
-        if sensor is None or j >= current.shape[1]:
-            continue
-        levels = on_levels(current[:, j], sensor.range, sensor.adc_bits, unit)
-        if levels is None or np.array_equal(levels, current[:, j]):
-            continue
-        if current is run.current and not (in_place and current.flags.writeable):
-            current = np.array(current)
-        current[:, j] = levels
-    if current is run.current:
-        return run
-    if in_place:
-        run.current = current
-        return run
-    return replace(run, current=current)
-
-
-def _in_joint_order(run, description):
-    """``run`` with its per-joint columns in ``description``'s joint order, its angles
-    checked against its counts (:func:`~guardid.identify.checks.check_log_robot`; a copy,
-    the robot's name not compared), when a guardid log's columns name other joints or
-    another order (``load_run`` keeps the file's order)."""
-    from guardid.identify.checks import check_log_robot
-
-    joints = getattr(description, "joints", None)
-    if run.joint_names is None or joints is None:
-        return run
-    if tuple(run.joint_names) == tuple(j.name for j in joints):
-        return run
-    return replace(check_log_robot(replace(run, robot_name=None), description,
-                                   "the description given"), robot_name=run.robot_name)  # fmt: skip
-
-
-def _segments(runs, options):
-    """(runs, Split or None): the runs split at their long gaps
-    (:func:`~guardid.identify.segments.split_runs`, the limit from the given cut-off or the
-    first run's harmonic), unless the caller split them already (a segment among them:
-    ``Run.source`` set) or none has a long gap. GuardidError when no segment is left."""
-    from guardid.identify.segments import split_runs
-
-    if any(getattr(r, "source", None) for r in runs):
-        return runs, None
-    cutoff = options.conditioning.cutoff_hz if options.conditioning is not None else None
-    split = split_runs(runs, cutoff, runs[0].highest_harmonic_hz)
-    if not split.gaps and not split.dropped:
-        return runs, None
-    if not split.runs:
-        raise GuardidError("; ".join(split.lines()))
-    return split.runs, split
-
-
-def _effort_is_torque(runs) -> bool:
-    """Whether the runs' effort is measured torque; GuardidError when they mix."""
-    if not runs:
-        raise GuardidError("identify: no runs")
-    kinds = {bool(r.torque) for r in runs}
-    if len(kinds) > 1:
-        raise GuardidError(f"{runs[-1].path}: mixes measured torque and motor current with "
-                           f"{runs[0].path}")  # fmt: skip
-    return kinds.pop()
-
-
-def _signals(run, runs):
-    """(t, q, effort[, qd]) of a run for the rows; qd only when every run has it."""
-    if all(r.qd is not None for r in runs):
-        return run.t, run.q, run.current, run.qd
-    return run.t, run.q, run.current
 
 
 def _fit_rows(rows, runs, description, options, torque) -> FitRows:
@@ -395,28 +232,6 @@ def _not_converged(results, ls) -> list[str]:
             t = r.fitted_on.cond.t[r.fitted_on.cond.mask]
             out += mark_not_converged({"ls": _result("ls", MethodFit.of(ref), A, y, t), m: r}, ref)
     return out
-
-
-def closed_loop_rows(rows: FitRows):
-    """The rows IV and DIDIM fit: they condition their simulated closed loop like the
-    measured run, row for row, in the acceleration form (the momentum form's per-joint cuts
-    follow the measured run's stops; lining a simulated run up with them is not wired yet).
-    ``rows.rows`` when already in that form; else the runs conditioned again in it, once per
-    call of :func:`identify` (kept on ``rows.rows``)."""
-    if rows.rows.options.equation == "acceleration":
-        return rows.rows
-    cached = rows.rows.acceleration_rows
-    if cached is None:
-        options = rows.options.conditioning or ConditioningOptions()
-        options = replace(options, equation="acceleration", order=None)
-        cached = stacked_rows(
-            [_signals(r, rows.runs) for r in rows.runs], rows.description, options,
-            in_current_units=rows.options.in_current_units,
-            effort_is_torque=rows.effort_is_torque,
-            highest_harmonic_hz=rows.runs[0].highest_harmonic_hz,
-        )  # fmt: skip
-        rows.rows.acceleration_rows = cached
-    return cached
 
 
 def _result_of(rows: FitRows, results, options, torque) -> Identification:

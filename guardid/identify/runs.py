@@ -39,6 +39,48 @@ class Run:
     source: str | None = None  # the file a segment comes from (None: path is the file)
 
 
+def trajectory_highest_harmonic(trajectory: dict | None) -> float | None:
+    """Highest frequency [Hz] of a trajectory mapping (a log header's ``trajectory``).
+
+    Fourier series: base_freq x harmonics; sums of sines / multisines: the largest
+    ``frequencies`` entry. None when unknown (then the cut-off comes from the spectrum).
+    """
+    if not isinstance(trajectory, dict):
+        return None
+    try:
+        if trajectory.get("kind") == "fourier":
+            return float(trajectory["base_freq"]) * int(trajectory["harmonics"])
+        freqs = trajectory.get("frequencies")
+        if freqs is not None:
+            return float(np.max(np.abs(np.asarray(freqs, dtype=float))))
+    except (KeyError, TypeError, ValueError):
+        return None
+    return None
+
+
+def run_from_arrays(
+    t_s,
+    q,
+    effort,
+    *,
+    torque=False,
+    voltage_v=None,
+    ticks=None,
+    setpoint=None,
+    qd=None,
+    highest_harmonic_hz=None,
+    path="<arrays>",
+) -> Run:
+    """A :class:`Run` from arrays (notebooks, simulations): t_s (N,) [s], q (N, n) [rad | m],
+    effort (N, n) motor current [A] (period means) or, with ``torque``, joint torque
+    [N m | N]; optional voltage_v (N, n) [V], ticks (N,), setpoint (N, n) [rad], qd (N, n)
+    measured velocities [rad/s | m/s], the excitation's highest harmonic [Hz]."""
+    return Run(
+        path=str(path), robot=None, ticks=ticks, t=t_s, q=q, current=effort, voltage=voltage_v,
+        torque=bool(torque), highest_harmonic_hz=highest_harmonic_hz, qd=qd, setpoint=setpoint,
+    )  # fmt: skip
+
+
 def load_run(path, sample_period_s: float | None = None, mapping=None, description=None) -> Run:
     """Load a run. Without ``mapping``: a guardid capture log, time from the tick column and
     the sample period [s]. With a :class:`~guardid.identify.foreign.ColumnMapping`: a foreign
@@ -49,8 +91,6 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
         return _load_foreign(path, mapping, description)
     if str(path).lower().endswith(".mat"):
         raise LogFormatError(f"{path}: a .mat file needs a column mapping (--columns)")
-    from guardid.identify.pipeline import trajectory_highest_harmonic
-
     try:
         data = read_log(path)  # the only read of the file: header, rows and footer
     except UnicodeDecodeError as exc:  # e.g. a gzip file named .csv

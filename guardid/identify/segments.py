@@ -49,6 +49,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from guardid.conditioning.bandwidth import HARMONIC_FACTOR, MAX_NYQUIST_FRACTION, MIN_CUTOFF_HZ
+from guardid.identify.cutoff import SPAN, motion_bandwidth
 
 BRIDGE_ERROR = 1e-3
 """Largest relative error [-] of a bridged gap at the motion's highest frequency (module)."""
@@ -75,8 +76,6 @@ def min_segment_rows(cutoff_hz: float, sample_period_s: float) -> int:
 def highest_cutoff_hz(runs, highest_harmonic_hz: float | None = None) -> float:
     """The highest cut-off [Hz] the cross-validation may choose for ``runs`` (Run objects):
     min(0.4 x Nyquist, SPAN x the motion's bandwidth), as :mod:`guardid.identify.cutoff`."""
-    from guardid.identify.cutoff import SPAN, motion_bandwidth
-
     period = min(_period(r) for r in runs)
     top = MAX_NYQUIST_FRACTION * 0.5 / period
     band = motion_bandwidth([(r.t, r.q) for r in runs], highest_harmonic_hz)

@@ -125,7 +125,7 @@ def reference_set(path, description) -> ParameterSet:
         out[name] = float(value)
     model = build_model(desc)
     nominal = dict(zip(names, model.base.values(model.params), strict=True))
-    from guardid.identify.rows import free_columns
+    from guardid.identify.equation import free_columns
 
     identified = {model.base.names[i] for i in free_columns(model, desc)}
     defaulted = [n for n in names if n not in out and n in identified]
@@ -274,7 +274,7 @@ def validate_runs(runs, names, description, sets, options, current_units=False, 
     ``scores``, ``preds`` ((run, label) -> predicted effort) and ``head``.
     """
     from guardid.identify.checks import call_naming_logs
-    from guardid.identify.pipeline import current_on_adc_levels
+    from guardid.identify.prepare import current_on_adc_levels
     from guardid.identify.rows import stacked_rows
     from guardid.identify.segments import split_runs
 

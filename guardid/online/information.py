@@ -142,7 +142,7 @@ class UntilStd:
     """
 
     def __init__(self, description, trajectory, target_pct: float) -> None:
-        from guardid.identify.rows import STICTION_GUARD_PERIODS
+        from guardid.identify.acceleration_run import STICTION_GUARD_PERIODS
         from guardid.online.tracker import LIVE_LS, OnlineIdentifier
 
         self.target_pct = float(target_pct)

@@ -26,7 +26,7 @@ def _explicit(name: str) -> bool:
 
 def log_highest_harmonic(path) -> float | None:
     """The excitation's highest frequency [Hz] named by a guardid log's header, or None."""
-    from guardid.identify.pipeline import trajectory_highest_harmonic
+    from guardid.identify.runs import trajectory_highest_harmonic
     from guardid.log import read_log
 
     try:

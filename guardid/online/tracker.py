@@ -245,7 +245,7 @@ class OnlineIdentifier:
     def for_trajectory(cls, description, methods, trajectory, **kwargs) -> OnlineIdentifier:
         """The tracker for a capture along ``trajectory`` (:mod:`guardid.excitation`): the
         cut-off follows its highest harmonic (the default one if it has none)."""
-        from guardid.identify.pipeline import trajectory_highest_harmonic
+        from guardid.identify.runs import trajectory_highest_harmonic
 
         to_dict = getattr(trajectory, "to_dict", None)
         harmonic = trajectory_highest_harmonic(to_dict() if to_dict else None)

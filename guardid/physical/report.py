@@ -6,7 +6,8 @@ import numpy as np
 
 from guardid.errors import GuardidError
 from guardid.estimators import d_tau
-from guardid.identify.pipeline import MethodResult, identify, stacked_rows
+from guardid.identify.pipeline import MethodResult, identify
+from guardid.identify.rows import stacked_rows
 from guardid.physical.fit import BIAS_PER_STD, ConsistentFit, fit_consistent
 
 METHOD = "consistent"
@@ -46,7 +47,7 @@ def identify_consistent(runs, description, options=None):
     Same arguments: a list of :class:`~guardid.identify.runs.Run`, the description and the
     :class:`~guardid.identify.pipeline.IdentifyOptions`.
     """
-    from guardid.identify.pipeline import prepared_runs
+    from guardid.identify.prepare import prepared_runs
 
     result = identify(runs, description, options)
     runs, _ = prepared_runs(runs, description, options)  # the runs identify conditioned

@@ -210,9 +210,9 @@ def online_figure(result, tracker) -> str | None:
 
 def verdict(result) -> tuple[str, bool]:
     """(one sentence, trusted): how well the reference method (WLS, else LS, else any with
-    standard deviations: :func:`~guardid.identify.pipeline.reference_method`) resolves every
+    standard deviations: :func:`~guardid.identify.untrusted.reference_method`) resolves every
     base parameter, by :func:`guardid.online.information.assess` at :data:`POOR_REL_STD_PCT`."""
-    from guardid.identify.pipeline import reference_method
+    from guardid.identify.untrusted import reference_method
     from guardid.online.information import assess, describe
 
     name = reference_method(result.results)
@@ -246,7 +246,7 @@ def _wide_table(rows) -> str:
 
 
 def parameter_table(result, reference=None, reference_label="reference") -> str:
-    from guardid.identify.pipeline import reference_method
+    from guardid.identify.untrusted import reference_method
 
     methods = list(result.results)
     base = result.results.get(reference_method(result.results)) or next(
@@ -378,7 +378,7 @@ def _page(title: str, inputs_meta: list[str], sections: list[tuple[str, str, str
 
 def identification_report(result, inputs: ReportInputs, title: str | None = None) -> str:
     """The identification page (sections :data:`SECTIONS`) as an HTML string."""
-    from guardid.identify.pipeline import reference_method
+    from guardid.identify.untrusted import reference_method
 
     base = result.results.get(reference_method(result.results)) or next(
         iter(result.results.values())

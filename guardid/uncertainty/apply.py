@@ -13,7 +13,7 @@ def apply_bootstrap(result, runs, description, identify_options, options, progre
     """Correct ``result``'s reference method (WLS, else LS) in place with the bootstrap of
     ``runs``; '' when done, else one phrase why it cannot run (a log without setpoints, a
     robot without ``pid:``, an estimate the closed loop cannot be simulated with)."""
-    from guardid.identify.pipeline import reference_method
+    from guardid.identify.untrusted import reference_method
     from guardid.uncertainty.bootstrap import quantisation_bootstrap
 
     method = reference_method(result.results)

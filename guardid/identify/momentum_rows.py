@@ -1,0 +1,134 @@
+"""Identification path, momentum form: every run's rows.
+
+Takes the runs (t [s] (N,), q (N, n) [rad | m], effort (N, n) [A | N m | N][, measured qd])
+and the options, equation form resolved (:func:`guardid.identify.equation.resolve_equation`);
+gives :class:`~guardid.identify.equation.FormRows`: per run the rows of the filtered
+momentum equation (:func:`guardid.conditioning.momentum.condition_momentum`: one causal
+filter on both sides, nothing differentiated twice) on their usable rows, the cut-off [Hz]
+(2 x the excitation's highest harmonic, else x the positions' band, at least 2 Hz), and the
+encoder rounding's noise in the columns that LS and WLS remove (:func:`quantisation_noise_of`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from guardid.conditioning import momentum as mom
+from guardid.conditioning.units import counts_per_joint_rev
+from guardid.estimators import ColumnNoise
+from guardid.identify.cutoff import CutoffChoice, motion_bandwidth
+from guardid.identify.equation import (
+    FormRows,
+    effort_gain,
+    position_limits,
+    smooth_friction_joints,
+)
+
+
+def momentum_rows(runs, description, options, why, model, free, in_current_units,
+                  effort_is_torque, highest_harmonic_hz) -> FormRows:  # fmt: skip
+    """The rows of :func:`guardid.identify.rows.stacked_rows` in the momentum form (module
+    docstring; :mod:`guardid.conditioning.momentum`); ``why`` (why this form): the forms'
+    common signature, not repeated in this form's notes; ``model``, ``free``: the
+    description's model and its identified columns."""
+    t0 = np.asarray(runs[0][0], dtype=float)
+    fs = 1.0 / float(np.median(np.diff(t0)))
+    cutoff = options.cutoff_hz
+    if cutoff is None:
+        band = motion_bandwidth(runs, highest_harmonic_hz)
+        cutoff = mom.momentum_cutoff(fs, band, bool(highest_harmonic_hz))
+        src = "the excitation's highest harmonic" if highest_harmonic_hz else "the positions' "
+        src += "" if highest_harmonic_hz else "99.5 % energy bandwidth"
+        factor = mom.HARMONIC_FACTOR if highest_harmonic_hz else mom.SPECTRUM_FACTOR
+        reason = (f"cut-off {cutoff:g} Hz of the momentum form's filter: {factor:g} x {src} "
+                  f"({band:.3g} Hz), at least {mom.MIN_CUTOFF_HZ:g} Hz")  # fmt: skip
+    else:
+        reason = f"cut-off {cutoff:g} Hz of the momentum form's filter, set by the caller"
+    used = replace(options, cutoff_hz=float(cutoff), friction_filter=False)
+    gain = effort_gain(description, in_current_units, effort_is_torque)
+    limits = position_limits(description)
+    thr = options.stiction_threshold
+    if thr is None:  # smooth friction holds through zero velocity
+        thr = np.where(smooth_friction_joints(description), 0.0, np.nan)
+    flat = (not effort_is_torque) if options.flat_is_stuck is None else options.flat_is_stuck
+    fixed = [i for i in range(len(model.base.names)) if i not in free]
+    base = model.base.values(model.params)
+    conds, As, ys, noises = [], [], [], []
+    for run in runs:
+        t, q, effort, *rest = run
+        cond, A_all, y = mom.condition_momentum(
+            t, q, effort, model, gain=gain, cutoff_hz=cutoff, order=used.order,
+            decimate=options.decimate, effort_is_torque=effort_is_torque, stiction_threshold=thr,
+            flat_is_stuck=flat, position_limits=limits, velocity=rest[0] if rest else None,
+        )  # fmt: skip
+        if fixed and not in_current_units:
+            y = y - A_all[:, :, fixed] @ base[fixed]
+        m = cond.mask
+        noises.append(quantisation_noise_of(cond, rest, description, options, model, free,
+                                            base if fixed and not in_current_units else None,
+                                            gain))  # fmt: skip
+        conds.append(cond)
+        As.append(A_all[m][:, :, free])
+        ys.append(y[m])
+    noise, note = _noise_of_runs(noises)
+    used = replace(used, quantisation=noise is not None)
+    choice = CutoffChoice(float(cutoff), reason.split(": ", 1)[-1], [float(cutoff)])
+    return FormRows(conds, As, ys, used, choice if options.cutoff_hz is None else None,
+                    [reason], [note], noise, keep_runs=True)  # fmt: skip
+
+
+def quantisation_noise_of(cond, rest, description, options, model, free, base, gain):
+    """(S (n, b', b'), c (n, b')) of one run's momentum rows (:func:`mom.quantisation_noise`
+    on the identified columns; ``base`` (b,) the description's base values when the fixed
+    columns' part was taken off y, else None), or a string saying why there is none:
+    ``options.quantisation`` False (True, as None: where the log allows), measured
+    velocities, a joint without an encoder, or positions off the encoder's grid (not whole
+    counts: the rounding is not that one)."""
+    if options.quantisation is False:
+        return "off (--no-quantisation-compensation)"
+    why = ""
+    if rest:
+        why = "the log's measured velocities are used"
+    elif any(j.encoder is None for j in description.joints):
+        why = "a joint without an encoder in the robot description"
+    else:
+        res = 2.0 * np.pi / counts_per_joint_rev(description)
+        off = ~mom.on_grid(cond.momentum.q, res)
+        if off.any():
+            names = ", ".join(description.joints[j].name for j in np.flatnonzero(off))
+            why = f"positions of {names} off the encoder's grid"
+    if why:
+        return why
+    damping = mom.electrical_damping(description, gain)
+    S, c = mom.quantisation_noise(cond.momentum, model, res, damping)
+    fixed = [i for i in range(S.shape[1]) if i not in free]
+    cross = c[:, free]
+    if base is not None and fixed:  # y less the fixed columns: their noise is in y
+        cross = cross - S[:, free][:, :, fixed] @ base[fixed]
+    return S[:, free][:, :, free], cross
+
+
+def _noise_of_runs(noises):
+    """(ColumnNoise summed over the runs or None, a note for the conditioning notes)."""
+    why = [n for n in noises if isinstance(n, str)]
+    if why:
+        return None, f"encoder quantisation not compensated: {why[0]}"
+    S = sum(n[0] for n in noises)
+    c = sum(n[1] for n in noises)
+    what = ("encoder quantisation compensated (bias-compensated LS and WLS): the rounding's "
+            f"noise in the columns estimated from {mom.QUANTISATION_DRAWS} draws on at most "
+            f"{mom.QUANTISATION_WINDOWS} windows of {mom.QUANTISATION_WINDOW_TICKS} ticks per "
+            "run")  # fmt: skip
+    return ColumnNoise(S, c, what), what
+
+
+def momentum_rows_of(rows, run: int, q, model, free) -> np.ndarray:
+    """(M_run, n, b') run ``run``'s usable rows of the momentum form recomputed from other
+    positions ``q`` (N, n) on the same ticks (e.g. its closed loop simulated, for
+    instruments): the measured run's cuts, filter and kept rows, velocities from ``q``.
+    ``rows``: the momentum form's :class:`~guardid.identify.rows.Rows`."""
+    cond = rows.runs[run]
+    A_all = mom.rows_like(cond.momentum, model, np.asarray(q, dtype=float))
+    return A_all[cond.mask][:, :, free]
