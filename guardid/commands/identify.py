@@ -335,6 +335,9 @@ def identify(
     click.echo(table(result, (*methods, "consistent") if fit else methods, description))
     if corrected:
         click.echo(corrected)
+    repeating = _repeating_line(result, description)
+    if repeating:
+        click.echo(repeating)
     if fit:
         from guardid.physical.report import standard_table
 
@@ -404,6 +407,26 @@ def identify(
         raise GuardidError(
             f"--consistent: the fit is not physically consistent: {fit.violations[0]}"
         )
+
+
+def _repeating_line(result, description) -> str:
+    """One line when the reference method's std counts a residual that repeats every
+    excitation period (:func:`guardid.identify.rows.period_groups`), else ''."""
+    from guardid.identify.report import effort_units
+    from guardid.identify.untrusted import reference_method
+
+    m = reference_method(result.results)
+    rep = result.results[m].settings.get("repeating_residual") if m else None
+    if not rep or not any(x > 0 for x in rep["std_per_joint"]):
+        return ""
+    unit = effort_units(result, description)
+    parts = ", ".join(f"{j.name} {x:.3g}" for j, x in
+                      zip(description.joints, rep["std_per_joint"], strict=True))  # fmt: skip
+    return (
+        f"{m.upper()}: its std counts an error that repeats every excitation period "
+        f"({parts} {unit} per row, over {rep['groups']} phase groups; params.yaml: "
+        "repeating_residual)"
+    )
 
 
 def _bootstrap(result, runs, description, options, k, status, log):

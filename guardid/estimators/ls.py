@@ -12,6 +12,17 @@ not shrink with the rows. Bias-compensated least squares removes the expected Gr
 normal equations: theta = (A^T W^2 A - sum_j w_j^2 S_j)^-1 (A^T W^2 y - sum_j w_j^2 c_j)
 (S_j = E[dA_j^T dA_j], c_j = E[dA_j^T dy_j] over output j's rows; Stoica & Soderstrom's
 bias-eliminating least squares with the noise moments given).
+
+Errors that repeat (``row_groups=``, (M,) labels, one per sample): rows that share a label
+share part of their error, e.g. the rows at the same phase of a periodic excitation, where
+an error that follows the motion (an encoder's rounding through the closed loop) comes back
+every period and no longer averages out over the log. Per output j, the weighted
+residuals are split by one-way random-effects ANOVA into a white part and a part common to
+a group, of variance tau_j^2 = max((MSB - MSW) / n0, 0) (between- and within-group mean
+squares, n0 the effective group size); the covariance then adds
+H^-1 [sum_j tau_j^2 (sum_g s_gj s_gj^T - A_j^T W^2 A_j)] H^-1, s_gj the sum of output j's
+weighted rows in group g (the rows of one group counted together instead of apart). With no
+common part (tau_j^2 = 0, or one row per group) it adds nothing.
 """
 
 from __future__ import annotations
@@ -72,10 +83,15 @@ class LeastSquares(Estimator):
     False when none was given or when removing it would leave the normal matrix
     indefinite: then the plain estimate), and then ``cov_`` is the sandwich
     sigma^2 H^-1 A^T W^2 A H^-1 with H the compensated normal matrix.
+    With ``row_groups`` ((N,) labels of the samples ``fit`` is given; module docstring),
+    ``cov_`` also holds the groups' common error and ``repeating_std_per_output_`` (n_out,)
+    is that common part's std per output (tau_j / w_j, unit of y; 0 where there is none).
+    ``update`` ignores the groups.
     """
 
-    def __init__(self, column_noise: ColumnNoise | None = None):
+    def __init__(self, column_noise: ColumnNoise | None = None, row_groups=None):
         self.column_noise = column_noise
+        self.row_groups = row_groups
         self._w = None  # per-output row weights (1 for OLS)
 
     # -- core on the weighted stacked system -------------------------------------------
@@ -133,14 +149,42 @@ class LeastSquares(Estimator):
             Rinv = solve_triangular(self.R_, np.eye(p))
         except np.linalg.LinAlgError:
             Rinv = np.full((p, p), np.nan)
-        self.cov_ = self.sigma2_ * (Rinv @ Rinv.T)
+        self._bread = Rinv @ Rinv.T
+        self.cov_ = self.sigma2_ * self._bread
         if H is not None:  # the sandwich of the compensated estimate
-            Hinv = np.linalg.inv(H)
-            self.cov_ = self.sigma2_ * (Hinv @ (self.R_.T @ self.R_) @ Hinv)
+            self._bread = np.linalg.inv(H)
+            self.cov_ = self.sigma2_ * (self._bread @ (self.R_.T @ self.R_) @ self._bread)
             self.cov_ = 0.5 * (self.cov_ + self.cov_.T)
+        self._set_std()
+
+    def _set_std(self) -> None:
         self.std_ = np.sqrt(np.diag(self.cov_))
         with np.errstate(divide="ignore", invalid="ignore"):
             self.rel_std_ = 100.0 * self.std_ / np.abs(self.theta_)
+
+    def _add_repeating(self, A3: np.ndarray, raw: np.ndarray) -> None:
+        """Add the error common to the rows of a group to ``cov_`` (module docstring)."""
+        groups = np.asarray(self.row_groups)
+        if groups.shape != raw.shape[:1]:
+            raise ValueError(f"row_groups has shape {groups.shape}, the rows {raw.shape[:1]}")
+        _, label = np.unique(groups, return_inverse=True)
+        n_groups, p = int(label.max()) + 1 if label.size else 0, A3.shape[2]
+        meat = np.zeros((p, p))
+        tau = np.zeros(raw.shape[1])
+        for j, w in enumerate(self._w):
+            live = np.any(A3[:, j, :] != 0, axis=1)  # a cut equation's rows carry nothing
+            tau2 = _group_variance(w * raw[live, j], label[live], n_groups)
+            if tau2 > 0.0:
+                rows = w * A3[live, j, :]
+                sums = np.zeros((n_groups, p))
+                np.add.at(sums, label[live], rows)
+                meat += tau2 * (sums.T @ sums - rows.T @ rows)
+                tau[j] = np.sqrt(tau2) / w
+        self.repeating_std_per_output_ = tau
+        if np.any(tau > 0.0):
+            extra = self._bread @ meat @ self._bread
+            self.cov_ = self.cov_ + 0.5 * (extra + extra.T)
+            self._set_std()
 
     def fit(self, A, y):
         """Fit on A (N, n_out, p) / y (N, n_out) or stacked A (M, p) / y (M,)."""
@@ -159,6 +203,8 @@ class LeastSquares(Estimator):
         raw = y2 - A3 @ self.theta_
         self.residual_rms_per_output_ = np.sqrt(np.mean(raw**2, axis=0))
         self.residual_rms_ = float(np.sqrt(np.mean(raw**2)))
+        if self.row_groups is not None:
+            self._add_repeating(A3, raw)
         return self
 
     def update(self, A_k, y_k):
@@ -188,6 +234,24 @@ class LeastSquares(Estimator):
         return self
 
 
+def _group_variance(e: np.ndarray, label: np.ndarray, n_groups: int) -> float:
+    """tau^2 of the one-way random-effects model e = a_group + white (ANOVA estimator,
+    unbalanced groups: (MSB - MSW) / n0, clipped at 0); 0 without two groups or without a
+    group of two rows."""
+    n = np.bincount(label, minlength=n_groups).astype(float)
+    n = n[n > 0]
+    total, k = float(n.sum()), n.size
+    if k < 2 or total <= k:
+        return 0.0
+    sums = np.bincount(label, weights=e, minlength=n_groups)
+    sums = sums[np.bincount(label, minlength=n_groups) > 0]
+    means = sums / n
+    msw = (float(e @ e) - float(sums @ means)) / (total - k)
+    msb = float(n @ (means - e.mean()) ** 2) / (k - 1)
+    n0 = (total - float(n @ n) / total) / (k - 1)
+    return max((msb - msw) / n0, 0.0)
+
+
 class WeightedLeastSquares(LeastSquares):
     """Gautier's IDIM-WLS: each output (joint) row group weighted by 1 / sigma_j.
 
@@ -203,8 +267,9 @@ class WeightedLeastSquares(LeastSquares):
     the OLS pass.
     """
 
-    def __init__(self, n_iter: int = 1, column_noise: ColumnNoise | None = None):
-        super().__init__(column_noise)
+    def __init__(self, n_iter: int = 1, column_noise: ColumnNoise | None = None,
+                 row_groups=None):  # fmt: skip
+        super().__init__(column_noise, row_groups)
         self.n_iter = int(n_iter)
 
     def fit(self, A, y):

@@ -166,12 +166,24 @@ def method_help() -> str:
 # -- the built-in methods ----------------------------------------------------------------
 
 
+def repeating_settings(est, groups) -> dict:
+    """What params.yaml records of the rows' groups (:func:`guardid.identify.rows.period_groups`)
+    for a least squares fit ``est``: their number and the std per joint of the residual
+    part common to a group [unit of the effort rows]; {} when the rows were not grouped."""
+    tau = getattr(est, "repeating_std_per_output_", None)
+    if groups is None or tau is None:
+        return {}
+    return {"repeating_residual": {"groups": int(np.unique(groups).size),
+                                   "std_per_joint": [float(x) for x in tau]}}  # fmt: skip
+
+
 @register("ls")
 class LS(Method):
     summary = "least squares"
 
     def fit(self, rows):
-        return MethodFit.of(rows.ls)
+        groups = getattr(rows.rows, "period_groups", None)
+        return MethodFit.of(rows.ls, settings=repeating_settings(rows.ls, groups))
 
 
 @register("wls")
@@ -182,7 +194,9 @@ class WLS(Method):
         from guardid.estimators import WeightedLeastSquares
 
         noise = getattr(rows.rows, "column_noise", None)
-        return MethodFit.of(WeightedLeastSquares(column_noise=noise).fit(rows.A, rows.y))
+        groups = getattr(rows.rows, "period_groups", None)
+        wls = WeightedLeastSquares(column_noise=noise, row_groups=groups).fit(rows.A, rows.y)
+        return MethodFit.of(wls, settings=repeating_settings(wls, groups))
 
 
 @register("bls")

@@ -168,6 +168,7 @@ def identify(runs, description, options: IdentifyOptions | None = None) -> Ident
         [run_signals(r, runs) for r in runs], description, conditioning,
         in_current_units=options.in_current_units, effort_is_torque=torque,
         highest_harmonic_hz=runs[0].highest_harmonic_hz,
+        periods_s=[r.excitation_period_s for r in runs],
     )  # fmt: skip
     return_freed_memory()  # the conditioning's per-tick temporaries, before the fit
     fit_rows = _fit_rows(rows, runs, description, options, torque)
@@ -199,7 +200,7 @@ def _fit_rows(rows, runs, description, options, torque) -> FitRows:
         A=A, y=y, rows=rows, names=tuple(model.base.names[i] for i in free),
         nominal=model.base.values(model.params)[free],
         dt=float(np.median(np.diff(cond.t[cond.mask]))),
-        ls=LeastSquares(rows.column_noise).fit(A, y),
+        ls=LeastSquares(rows.column_noise, rows.period_groups).fit(A, y),
         runs=runs, description=description, model=model, free=free, options=options,
         effort_is_torque=torque,
     )  # fmt: skip

@@ -127,6 +127,8 @@ def to_yaml_dict(result, description, log_path) -> dict:
             entry["output_spread_is"] = SPREAD_NOTE.removeprefix("MLP ~: ")
         if "quantisation_bootstrap" in r.settings:  # guardid.uncertainty: values corrected
             entry["quantisation_bootstrap"] = r.settings["quantisation_bootstrap"]
+        if "repeating_residual" in r.settings:  # its std counts an error repeating per period
+            entry["repeating_residual"] = r.settings["repeating_residual"]
         if m in STD_NOT_HONEST:
             entry["std_honest"] = False
             entry["std_note"] = STD_NOT_HONEST[m]

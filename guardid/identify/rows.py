@@ -64,6 +64,7 @@ class Rows:
     runs: list = field(default_factory=list)
     acceleration_rows: Rows | None = None
     column_noise: ColumnNoise | None = None
+    period_groups: np.ndarray | None = None
 
     def __iter__(self):  # (cond, A, y), as before
         return iter((self.cond, self.A, self.y))
@@ -101,6 +102,7 @@ def stacked_rows(
     in_current_units: bool = False,
     effort_is_torque: bool = False,
     highest_harmonic_hz: float | None = None,
+    periods_s=None,
 ) -> Rows:
     """Rows of several runs (t [s] (N,), q (N, n), effort (N, n)), each conditioned on its
     own under the same ``options`` and stacked (times shifted so that they keep increasing).
@@ -114,6 +116,8 @@ def stacked_rows(
     :func:`~guardid.identify.equation.resolve_equation`'s default.
     ``effort_is_torque``: the effort is measured joint torque (gain 1, instantaneous
     samples); ``in_current_units``: no current-to-torque gain (y in the effort's unit).
+    ``periods_s``: per run the period [s] its excitation repeats with (None: unknown), for
+    :func:`period_groups`.
     """
     options = options or ConditioningOptions()
     runs = list(runs)
@@ -127,8 +131,39 @@ def stacked_rows(
     joined = _join(form.conds)
     joined.notes[:0] = form.first_notes
     joined.notes.extend(form.last_notes)
+    groups = period_groups(form.conds, periods_s or [None] * len(form.conds))
+    if groups is not None and len(groups) != len(A):
+        groups = None  # rows and conditioned samples do not line up: no grouping
+    if groups is not None:
+        joined.notes.append(f"rows grouped by their phase in the excitation's period "
+                            f"({len(np.unique(groups))} groups; the std includes an error "
+                            "that repeats every period)")  # fmt: skip
     return Rows(joined, A, y, form.options, form.choice, _doubts(form.conds, form.choice),
-                form.conds if form.keep_runs else [], column_noise=form.column_noise)  # fmt: skip
+                form.conds if form.keep_runs else [], column_noise=form.column_noise,
+                period_groups=groups)  # fmt: skip
+
+
+def period_groups(conds, periods_s) -> np.ndarray | None:
+    """(M,) group labels of the stacked rows of ``conds`` (one conditioned run each): the
+    rows of a run whose excitation repeats with period ``periods_s[k]`` [s] and that spans
+    at least two periods are grouped by their phase in it, in bins one row spacing wide
+    (so that a group holds the rows of the same phase, about one per period); other rows
+    are a group each. None when no run is grouped. The least squares covariance counts an
+    error common to a group (:class:`~guardid.estimators.LeastSquares`, ``row_groups``):
+    what follows the motion, as the encoder's rounding through the closed loop, comes back
+    every period and does not average out over the log."""
+    labels, start, grouped = [], 0, False
+    for cond, period in zip(conds, periods_s, strict=True):
+        t = np.asarray(cond.t)[cond.mask]
+        label = np.arange(t.size)
+        if period and t.size > 2 and t[-1] - t[0] >= 2.0 * period:
+            spacing = float(np.median(np.diff(t)))
+            bins = max(int(round(period / spacing)), 1)
+            label = np.minimum((np.mod(t, period) / period * bins).astype(int), bins - 1)
+            grouped = True
+        labels.append(label + start)
+        start += int(label.max()) + 1 if label.size else 0
+    return np.concatenate(labels) if grouped else None
 
 
 def _stacked(As, ys, free):

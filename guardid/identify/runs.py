@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from guardid.errors import LogFormatError
+from guardid.excitation.sines import common_period
 from guardid.log import read_log
 
 
@@ -18,7 +19,9 @@ class Run:
     ``current`` is the effort: motor current [A] (period means, as in guardid logs), or joint
     torque [N m] when ``torque`` is True (foreign logs with tau<j> columns: instantaneous
     samples, used as they are). ``highest_harmonic_hz``: the excitation's highest frequency
-    [Hz] named by a guardid log's header (None when unknown: foreign logs).
+    [Hz] named by a guardid log's header (None when unknown: foreign logs);
+    ``excitation_period_s``: the period [s] after which its excitation repeats (None when
+    unknown or not periodic).
     """
 
     path: str
@@ -37,6 +40,7 @@ class Run:
     counts: np.ndarray | None = None  # a guardid log's counts_* columns (N, n) [counts]
     sample_period_s: float | None = None  # a guardid log's tick period [s]
     source: str | None = None  # the file a segment comes from (None: path is the file)
+    excitation_period_s: float | None = None
 
 
 def trajectory_highest_harmonic(trajectory: dict | None) -> float | None:
@@ -56,6 +60,25 @@ def trajectory_highest_harmonic(trajectory: dict | None) -> float | None:
     except (KeyError, TypeError, ValueError):
         return None
     return None
+
+
+def trajectory_period(trajectory: dict | None) -> float | None:
+    """The period [s] after which a trajectory mapping (a log header's ``trajectory``)
+    repeats: 1 / base_freq for a Fourier series, the frequencies' common period for sums of
+    sines and multisines; None when unknown or not periodic."""
+    if not isinstance(trajectory, dict):
+        return None
+    try:
+        if trajectory.get("kind") == "fourier":
+            period = 1.0 / float(trajectory["base_freq"])
+        else:
+            freqs = trajectory.get("frequencies")
+            if freqs is None:
+                return None
+            period = common_period(np.concatenate([np.ravel(f) for f in freqs]).astype(float))
+    except (KeyError, TypeError, ValueError, ZeroDivisionError):
+        return None
+    return period if np.isfinite(period) and period > 0 else None
 
 
 def run_from_arrays(
@@ -132,6 +155,7 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
         current=current,
         voltage=voltage,
         highest_harmonic_hz=trajectory_highest_harmonic(data.header.get("trajectory")),
+        excitation_period_s=trajectory_period(data.header.get("trajectory")),
         robot_name=data.header.get("robot"),
         joint_names=tuple(joints),
         setpoint=setpoint,

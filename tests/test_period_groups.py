@@ -1,0 +1,154 @@
+"""An error that repeats every excitation period is counted in the least squares std.
+
+Truth: the estimates' spread over seeded numpy draws (an independent Monte Carlo of the
+model y = A theta + c[phase] + white), the one-way ANOVA worked out by hand, phase labels
+written out by hand, and the log header's excitation period (1 / base_freq).
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import yaml
+
+from guardid.estimators import LeastSquares, WeightedLeastSquares
+from guardid.estimators.ls import _group_variance
+from guardid.identify.rows import period_groups
+from guardid.identify.runs import load_run, trajectory_period
+
+PERIODS, PHASES = 12, 30  # rows: 12 periods of 30 phases
+
+
+def _draws(n_draws: int, common_sd: float, seed: int = 7):
+    """Per draw (A (M, 2, 3), y (M, 2)) with the regressor repeating every period (a
+    periodic excitation), a common error per phase (sd ``common_sd``) and white noise of
+    sd 0.5 (joint 0) and 1.0 (joint 1); theta = (1, -2, 0.5)."""
+    rng = np.random.default_rng(seed)
+    phase = np.tile(np.arange(PHASES), PERIODS)
+    s = 2 * np.pi * phase / PHASES
+    A = np.zeros((phase.size, 2, 3))
+    A[:, 0, :] = np.column_stack([np.sin(s), np.cos(2 * s), np.ones_like(s)])
+    A[:, 1, :] = np.column_stack([np.cos(s), np.sin(3 * s), np.sign(np.sin(s) + 0.1)])
+    A += 0.05 * rng.standard_normal(A.shape)  # the motion varies a little from period to period
+    theta = np.array([1.0, -2.0, 0.5])
+    out = []
+    for _ in range(n_draws):
+        common = common_sd * rng.standard_normal((PHASES, 2))[phase]
+        white = rng.standard_normal((phase.size, 2)) * np.array([0.5, 1.0])
+        out.append((A, A @ theta + common + white))
+    return phase, theta, out
+
+
+def _spread_over_std(estimator, phase, theta, draws):
+    """(spread of the estimates over the draws / their mean reported std) per parameter."""
+    est = [estimator().fit(A, y) for A, y in draws]
+    values = np.array([e.theta_ for e in est])
+    return values.std(axis=0, ddof=1) / np.mean([e.std_ for e in est], axis=0)
+
+
+@pytest.mark.parametrize("cls", [LeastSquares, WeightedLeastSquares])
+def test_std_covers_an_error_that_repeats_every_period(cls):
+    phase, theta, draws = _draws(300, common_sd=0.4)
+    grouped = _spread_over_std(lambda: cls(row_groups=phase), phase, theta, draws)
+    plain = _spread_over_std(cls, phase, theta, draws)
+    assert np.all(plain > 1.5)  # the rows' own std misses the repeating part
+    assert np.all((grouped > 0.85) & (grouped < 1.15)), grouped
+
+
+@pytest.mark.parametrize("cls", [LeastSquares, WeightedLeastSquares])
+def test_without_a_repeating_error_the_std_stays_the_rows_own(cls):
+    phase, theta, draws = _draws(300, common_sd=0.0, seed=8)
+    grouped = _spread_over_std(lambda: cls(row_groups=phase), phase, theta, draws)
+    assert np.all((grouped > 0.85) & (grouped < 1.15)), grouped
+    A, y = draws[0]
+    g, p = cls(row_groups=phase).fit(A, y), cls().fit(A, y)
+    np.testing.assert_array_equal(g.theta_, p.theta_)  # the estimate is not touched
+    assert np.all(g.std_ >= p.std_) and np.all(g.std_ < 1.2 * p.std_)
+
+
+def test_repeating_std_per_output_estimates_the_common_part():
+    phase, theta, draws = _draws(40, common_sd=0.4, seed=9)
+    taus = np.array([WeightedLeastSquares(row_groups=phase).fit(A, y)
+                     .repeating_std_per_output_ for A, y in draws])  # fmt: skip
+    np.testing.assert_allclose(np.median(taus, axis=0), 0.4, rtol=0.2)
+
+
+def test_group_variance_by_hand():
+    # groups (1, 3) and (5, 7): means 2 and 6, grand mean 4; MSW = 4 / 2 = 2,
+    # MSB = 2 (2 - 4)^2 + 2 (6 - 4)^2 = 16, n0 = (4 - 8 / 4) / 1 = 2: tau^2 = (16 - 2) / 2 = 7
+    label = np.array([0, 0, 1, 1])
+    assert _group_variance(np.array([1.0, 3.0, 5.0, 7.0]), label, 2) == pytest.approx(7.0)
+    # equal group means: MSB = 0 < MSW, clipped at 0
+    assert _group_variance(np.array([1.0, -1.0, 1.0, -1.0]), label, 2) == 0.0
+    # one row per group: nothing repeats
+    assert _group_variance(np.array([1.0, 2.0, 3.0]), np.arange(3), 3) == 0.0
+
+
+def test_row_groups_must_match_the_rows():
+    A = np.random.default_rng(1).standard_normal((20, 2))
+    with pytest.raises(ValueError, match="row_groups"):
+        LeastSquares(row_groups=np.zeros(19, dtype=int)).fit(A, A @ np.ones(2))
+
+
+def _cond(t, mask=None):
+    t = np.asarray(t, dtype=float)
+    return SimpleNamespace(t=t, mask=np.ones(t.size, bool) if mask is None else mask)
+
+
+def test_period_groups_by_hand():
+    # rows every 0.25 s over three periods of 1 s: four phases, labels 0 1 2 3 0 1 2 3 ...
+    a = _cond(np.arange(12) * 0.25)
+    np.testing.assert_array_equal(period_groups([a], [1.0]), np.tile([0, 1, 2, 3], 3))
+    # a masked row drops out; a second run's labels follow the first's; a run without a
+    # period (or shorter than two periods) has a group per row
+    mask = np.ones(12, bool)
+    mask[5] = False
+    b, short = _cond(np.arange(12) * 0.25, mask), _cond(np.arange(6) * 0.25)
+    got = period_groups([b, short, a], [1.0, 1.0, None])
+    want = np.concatenate([[0, 1, 2, 3, 0, 2, 3, 0, 1, 2, 3], 4 + np.arange(6), 10 + np.arange(12)])
+    np.testing.assert_array_equal(got, want)
+    assert period_groups([a, short], [None, 1.0]) is None
+
+
+def test_trajectory_period():
+    assert trajectory_period({"kind": "fourier", "base_freq": 0.25, "harmonics": 5}) == 4.0
+    sines = {"kind": "sines", "frequencies": [[0.1, 0.3], [0.2]]}
+    assert trajectory_period(sines) == pytest.approx(10.0)
+    assert trajectory_period({"kind": "sines", "frequencies": [[0.1, 0.1 * np.sqrt(2)]]}) is None
+    assert trajectory_period(None) is None
+    assert trajectory_period({"kind": "fourier"}) is None
+
+
+def test_a_capture_log_is_grouped_by_its_excitation_period(gap_guard_captures, tmp_path):
+    log = gap_guard_captures[1]
+    header = yaml.safe_load("\n".join(line[2:] for line in log.read_text().splitlines()
+                                      if line.startswith("# ")))  # fmt: skip
+    run = load_run(log)
+    assert run.excitation_period_s == pytest.approx(1.0 / header["trajectory"]["base_freq"])
+    from guardid.identify.pipeline import IdentifyOptions, identify
+    from guardid.robot import load_robot
+
+    result = identify([run], load_robot("guard"), IdentifyOptions(methods=("ls", "wls")))
+    for m in ("ls", "wls"):
+        rep = result.results[m].settings["repeating_residual"]
+        assert len(rep["std_per_joint"]) == 2 and all(x >= 0 for x in rep["std_per_joint"])
+        # groups: about one per row spacing of the period (rows 1 / (2 x cut-off) apart)
+        spacing = 1.0 / (2.0 * result.conditioning.cutoff_hz)
+        assert 0.5 * run.excitation_period_s / spacing <= rep["groups"]
+        assert rep["groups"] <= 1.5 * run.excitation_period_s / spacing
+
+    # the command's line: said when the reference method (WLS) has a repeating part, not when
+    # it has none
+    from guardid.commands.identify import _repeating_line
+
+    result.results["wls"].settings["repeating_residual"] = {
+        "groups": 40,
+        "std_per_joint": [0.002, 0.0],
+    }
+    line = _repeating_line(result, load_robot("guard"))
+    assert line.startswith("WLS: its std counts an error that repeats every excitation period")
+    assert "pan 0.002, tilt 0 N m per row, over 40 phase groups" in line
+    result.results["wls"].settings["repeating_residual"]["std_per_joint"] = [0.0, 0.0]
+    assert _repeating_line(result, load_robot("guard")) == ""
