@@ -152,3 +152,17 @@ def test_a_capture_log_is_grouped_by_its_excitation_period(gap_guard_captures, t
     assert "pan 0.002, tilt 0 N m per row, over 40 phase groups" in line
     result.results["wls"].settings["repeating_residual"]["std_per_joint"] = [0.0, 0.0]
     assert _repeating_line(result, load_robot("guard")) == ""
+
+
+@pytest.mark.parametrize("period_ticks, row_ticks", [(320, 16), (200, 8), (800, 40)])
+def test_rows_of_one_phase_share_one_group_on_the_tick_grid(period_ticks, row_ticks):
+    # a period a whole number of row spacings (4.8 s = 20 rows of 16 ticks of 15 ms): the
+    # rows repeat at exactly the same phases, which sit on the bins' edges; rounding must
+    # not scatter one phase over two groups (nor put two phases in one), whatever the
+    # first row's tick
+    for first in range(row_ticks):
+        ticks = first + row_ticks * np.arange(30 * period_ticks // row_ticks)
+        got = period_groups([_cond(ticks * 0.015)], [period_ticks * 0.015])
+        phase = ticks % period_ticks  # the same point of the trajectory, in whole ticks
+        pairs = np.unique(np.column_stack([phase, got]), axis=0)
+        assert len(pairs) == len(np.unique(phase)) == len(np.unique(got)), first

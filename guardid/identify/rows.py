@@ -147,7 +147,8 @@ def period_groups(conds, periods_s) -> np.ndarray | None:
     """(M,) group labels of the stacked rows of ``conds`` (one conditioned run each): the
     rows of a run whose excitation repeats with period ``periods_s[k]`` [s] and that spans
     at least two periods are grouped by their phase in it, in bins one row spacing wide
-    (so that a group holds the rows of the same phase, about one per period); other rows
+    centred on the first row's phase (so that a group holds the rows of the same phase,
+    about one per period); other rows
     are a group each. None when no run is grouped. The least squares covariance counts an
     error common to a group (:class:`~guardid.estimators.LeastSquares`, ``row_groups``):
     what follows the motion, as the encoder's rounding through the closed loop, comes back
@@ -159,7 +160,11 @@ def period_groups(conds, periods_s) -> np.ndarray | None:
         if period and t.size > 2 and t[-1] - t[0] >= 2.0 * period:
             spacing = float(np.median(np.diff(t)))
             bins = max(int(round(period / spacing)), 1)
-            label = np.minimum((np.mod(t, period) / period * bins).astype(int), bins - 1)
+            # bins centred on the first row's phase and its multiples of period / bins: rows
+            # that repeat at exactly the same phase (a period a whole number of row
+            # spacings) sit in a bin's middle, not on an edge where rounding would scatter
+            # them over two groups
+            label = np.rint(np.mod(t - t[0], period) / period * bins).astype(int) % bins
             grouped = True
         labels.append(label + start)
         start += int(label.max()) + 1 if label.size else 0
