@@ -18,6 +18,10 @@ from guardid.estimators.ls import _group_variance
 from guardid.identify.rows import period_groups
 from guardid.identify.runs import load_run, trajectory_period
 
+pytestmark = pytest.mark.usefixtures(
+    "blas_one_thread"
+)  # many small fits: OpenBLAS threads only spin
+
 PERIODS, PHASES = 12, 30  # rows: 12 periods of 30 phases
 
 
@@ -84,6 +88,40 @@ def test_group_variance_by_hand():
     assert _group_variance(np.array([1.0, -1.0, 1.0, -1.0]), label, 2) == 0.0
     # one row per group: nothing repeats
     assert _group_variance(np.array([1.0, 2.0, 3.0]), np.arange(3), 3) == 0.0
+
+
+def test_group_variance_unbalanced_by_hand():
+    # groups (1, 3) and (5): means 2 and 5, grand mean 3; MSW = 2 / (3 - 2) = 2,
+    # MSB = 2 (2 - 3)^2 + 1 (5 - 3)^2 = 6, n0 = (3 - (4 + 1) / 3) / 1 = 4 / 3:
+    # tau^2 = (6 - 2) / (4 / 3) = 3 (the mean group size 1.5 would give 8 / 3)
+    assert _group_variance(np.array([1.0, 3.0, 5.0]), np.array([0, 0, 1]), 2) == pytest.approx(3.0)
+
+
+def test_unbalanced_groups_and_a_cut_joint():
+    # groups of 1 to 3 rows whose regressor repeats within the group, a large common error
+    # (sd 1) against the white (0.3, 0.6): the groups' sums hold most of the covariance, so
+    # counting a group's own rows twice (the white part is already in the pooled sigma^2)
+    # would show; joint 1's equation cut on a third of the rows (rows of zeros: A and y),
+    # which must not dilute its common part
+    rng = np.random.default_rng(21)
+    sizes = rng.integers(1, 4, 160)
+    label = np.repeat(np.arange(sizes.size), sizes)
+    A = rng.standard_normal((sizes.size, 2, 3))[label] + 0.1 * rng.standard_normal(
+        (label.size, 2, 3)
+    )
+    cut = np.arange(label.size) % 3 == 0
+    A[cut, 1, :] = 0.0
+    theta, tau = np.array([1.0, -2.0, 0.5]), np.array([1.0, 1.0])
+    est, std, taus = [], [], []
+    for _ in range(300):
+        common = tau * rng.standard_normal((sizes.size, 2))[label]
+        y = A @ theta + common + rng.standard_normal((label.size, 2)) * np.array([0.3, 0.6])
+        y[cut, 1] = 0.0
+        fit = WeightedLeastSquares(row_groups=label).fit(A, y)
+        est.append(fit.theta_), std.append(fit.std_), taus.append(fit.repeating_std_per_output_)
+    ratio = np.std(est, axis=0, ddof=1) / np.mean(std, axis=0)
+    assert np.all((ratio > 0.9) & (ratio < 1.15)), ratio  # counted twice: 0.83-0.89
+    np.testing.assert_allclose(np.median(taus, axis=0), tau, rtol=0.1)
 
 
 def test_row_groups_must_match_the_rows():
