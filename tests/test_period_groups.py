@@ -204,3 +204,18 @@ def test_rows_of_one_phase_share_one_group_on_the_tick_grid(period_ticks, row_ti
         phase = ticks % period_ticks  # the same point of the trajectory, in whole ticks
         pairs = np.unique(np.column_stack([phase, got]), axis=0)
         assert len(pairs) == len(np.unique(phase)) == len(np.unique(got)), first
+
+
+def test_runs_from_arrays_name_their_period(gap_guard_captures):
+    # the Python API's runs (notebooks, simulations) are grouped as a capture log is when
+    # given the period; without it, not
+    from guardid.identify import IdentifyOptions, identify, run_from_arrays
+    from guardid.robot import load_robot
+
+    log = load_run(gap_guard_captures[1])
+    kw = {"ticks": log.ticks, "highest_harmonic_hz": log.highest_harmonic_hz}
+    options, guard = IdentifyOptions(methods=("wls",)), load_robot("guard")
+    for period, grouped in ((log.excitation_period_s, True), (None, False)):
+        run = run_from_arrays(log.t, log.q, log.current, excitation_period_s=period, **kw)
+        settings = identify([run], guard, options).results["wls"].settings
+        assert ("repeating_residual" in settings) is grouped

@@ -93,14 +93,18 @@ def run_from_arrays(
     qd=None,
     highest_harmonic_hz=None,
     path="<arrays>",
+    excitation_period_s=None,
 ) -> Run:
     """A :class:`Run` from arrays (notebooks, simulations): t_s (N,) [s], q (N, n) [rad | m],
     effort (N, n) motor current [A] (period means) or, with ``torque``, joint torque
     [N m | N]; optional voltage_v (N, n) [V], ticks (N,), setpoint (N, n) [rad], qd (N, n)
-    measured velocities [rad/s | m/s], the excitation's highest harmonic [Hz]."""
+    measured velocities [rad/s | m/s], the excitation's highest harmonic [Hz] and the
+    period [s] it repeats with (as a guardid log's header gives them: LS and WLS then count
+    an error that repeats every period, :func:`guardid.identify.rows.period_groups`)."""
     return Run(
         path=str(path), robot=None, ticks=ticks, t=t_s, q=q, current=effort, voltage=voltage_v,
         torque=bool(torque), highest_harmonic_hz=highest_harmonic_hz, qd=qd, setpoint=setpoint,
+        excitation_period_s=excitation_period_s,
     )  # fmt: skip
 
 
