@@ -219,3 +219,15 @@ def test_runs_from_arrays_name_their_period(gap_guard_captures):
         run = run_from_arrays(log.t, log.q, log.current, excitation_period_s=period, **kw)
         settings = identify([run], guard, options).results["wls"].settings
         assert ("repeating_residual" in settings) is grouped
+
+
+def test_the_groups_counted_are_the_phases_not_the_ungrouped_rows():
+    # a run over three periods (four phases) stacked with a short run (six rows, a group
+    # each): params.yaml and the notes say 4 phase groups, not 10
+    from guardid.identify.methods import repeating_settings
+    from guardid.identify.rows import phase_group_count
+
+    groups = period_groups([_cond(np.arange(12) * 0.25), _cond(np.arange(6) * 0.25)], [1.0, 1.0])
+    assert phase_group_count(groups) == 4
+    est = SimpleNamespace(repeating_std_per_output_=np.zeros(2))
+    assert repeating_settings(est, groups)["repeating_residual"]["groups"] == 4

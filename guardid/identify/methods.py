@@ -173,7 +173,9 @@ def repeating_settings(est, groups) -> dict:
     tau = getattr(est, "repeating_std_per_output_", None)
     if groups is None or tau is None:
         return {}
-    return {"repeating_residual": {"groups": int(np.unique(groups).size),
+    from guardid.identify.rows import phase_group_count
+
+    return {"repeating_residual": {"groups": phase_group_count(groups),
                                    "std_per_joint": [float(x) for x in tau]}}  # fmt: skip
 
 

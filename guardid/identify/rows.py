@@ -136,7 +136,7 @@ def stacked_rows(
         groups = None  # rows and conditioned samples do not line up: no grouping
     if groups is not None:
         joined.notes.append(f"rows grouped by their phase in the excitation's period "
-                            f"({len(np.unique(groups))} groups; the std includes an error "
+                            f"({phase_group_count(groups)} groups; the std includes an error "
                             "that repeats every period)")  # fmt: skip
     return Rows(joined, A, y, form.options, form.choice, _doubts(form.conds, form.choice),
                 form.conds if form.keep_runs else [], column_noise=form.column_noise,
@@ -169,6 +169,12 @@ def period_groups(conds, periods_s) -> np.ndarray | None:
         labels.append(label + start)
         start += int(label.max()) + 1 if label.size else 0
     return np.concatenate(labels) if grouped else None
+
+
+def phase_group_count(groups) -> int:
+    """The groups of :func:`period_groups`' labels that hold two rows or more (the phases;
+    the rows of a run not grouped are a group each and are not counted)."""
+    return int(np.count_nonzero(np.unique(groups, return_counts=True)[1] > 1))
 
 
 def _stacked(As, ys, free):
