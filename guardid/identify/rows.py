@@ -136,8 +136,8 @@ def stacked_rows(
         groups = None  # rows and conditioned samples do not line up: no grouping
     if groups is not None:
         joined.notes.append(f"rows grouped by their phase in the excitation's period "
-                            f"({phase_group_count(groups)} groups; the std includes an error "
-                            "that repeats every period)")  # fmt: skip
+                            f"({phase_group_count(groups)} groups; LS and WLS count in their "
+                            "std an error that repeats every period)")  # fmt: skip
     return Rows(joined, A, y, form.options, form.choice, _doubts(form.conds, form.choice),
                 form.conds if form.keep_runs else [], column_noise=form.column_noise,
                 period_groups=groups)  # fmt: skip
