@@ -43,11 +43,15 @@ NEEDS_FLASH = pytest.mark.skipif(
 def patient_boot(monkeypatch):
     """The simulated MCU boots on the wall clock (its boot loader's wait is real time, as on
     a board), but simavr, on a host starved of CPU, runs slower than the wall clock: its
-    firmware answers later than a board's would. Here the host's HELLO resends after a reset
-    wait up to about 30 s instead of a board's 4.75 s (:data:`guardid.link.board.BOOT_RETRY`,
-    its first waits unchanged): how long the host waits, not what it checks (a CI run beside
-    two CPU-bound processes failed with "no answer to HELLO after 6 attempts (4.75 s)")."""
-    slow = RetryPolicy(attempts=32, first_wait_s=0.25, backoff=2.0, max_wait_s=1.0)
+    firmware answers later than a board's would. A boot loader takes a byte it receives for
+    the start of a command and listens on, so HELLOs resent every second (in wall-clock time)
+    can keep a slowed boot loader listening for good: 32 resends 1 s apart (30.75 s) went
+    unanswered in a CI run beside two CPU-bound processes. Here the resends after a reset
+    back off to 5 s apart (0.25, 0.5, 1, 2, 4, then 5 s; about 48 s in all, against a board's
+    4.75 s, :data:`guardid.link.board.BOOT_RETRY`): the boot loader gets silences long enough
+    to time out and start the firmware even when simavr runs five times slower than the
+    wall clock. How long the host waits, not what it checks."""
+    slow = RetryPolicy(attempts=13, first_wait_s=0.25, backoff=2.0, max_wait_s=5.0)
     monkeypatch.setattr(board, "BOOT_RETRY", slow)
 
 
