@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from guardid.estimators import LeastSquares, WeightedLeastSquares
-from guardid.estimators.ls import _group_variance
+from guardid.estimators.ls import _anova_sums, _common_variances
 from guardid.identify.rows import period_groups
 from guardid.identify.runs import load_run, trajectory_period
 
@@ -79,22 +79,52 @@ def test_repeating_std_per_output_estimates_the_common_part():
     np.testing.assert_allclose(np.median(taus, axis=0), 0.4, rtol=0.2)
 
 
-def test_group_variance_by_hand():
-    # groups (1, 3) and (5, 7): means 2 and 6, grand mean 4; MSW = 4 / 2 = 2,
-    # MSB = 2 (2 - 4)^2 + 2 (6 - 4)^2 = 16, n0 = (4 - 8 / 4) / 1 = 2: tau^2 = (16 - 2) / 2 = 7
+def _tau2_of_a_mean(e, label):
+    """tau^2 when the only column is a constant (the classical one-way ANOVA's model)."""
+    ones = np.ones((len(e), 1))
+    return _common_variances([(ones, np.asarray(e, float), np.asarray(label))],
+                             np.array([[1.0 / len(e)]]))[0]  # fmt: skip
+
+
+def test_common_variance_by_hand():
+    # groups (1, 3) and (5, 7): means 2 and 6, grand mean 4; SSB = 2 (2 - 4)^2 + 2 (6 - 4)^2
+    # = 16, SSW = 4; with a fitted mean the moments are the classical ANOVA's: MSW = 4 / 2
+    # = 2, MSB = 16, n0 = (4 - 8 / 4) / 1 = 2: tau^2 = (16 - 2) / 2 = 7
     label = np.array([0, 0, 1, 1])
-    assert _group_variance(np.array([1.0, 3.0, 5.0, 7.0]), label, 2) == pytest.approx(7.0)
+    ssb, ssw, n = _anova_sums(np.array([1.0, 3.0, 5.0, 7.0]), label)
+    assert (ssb, ssw) == pytest.approx((16.0, 4.0)) and list(n) == [2, 2]
+    assert _tau2_of_a_mean([1.0, 3.0, 5.0, 7.0], label) == pytest.approx(7.0)
     # equal group means: MSB = 0 < MSW, clipped at 0
-    assert _group_variance(np.array([1.0, -1.0, 1.0, -1.0]), label, 2) == 0.0
+    assert _tau2_of_a_mean([1.0, -1.0, 1.0, -1.0], label) == 0.0
     # one row per group: nothing repeats
-    assert _group_variance(np.array([1.0, 2.0, 3.0]), np.arange(3), 3) == 0.0
+    assert _tau2_of_a_mean([1.0, 2.0, 3.0], np.arange(3)) == 0.0
 
 
-def test_group_variance_unbalanced_by_hand():
+def test_common_variance_unbalanced_by_hand():
     # groups (1, 3) and (5): means 2 and 5, grand mean 3; MSW = 2 / (3 - 2) = 2,
     # MSB = 2 (2 - 3)^2 + 1 (5 - 3)^2 = 6, n0 = (3 - (4 + 1) / 3) / 1 = 4 / 3:
     # tau^2 = (6 - 2) / (4 / 3) = 3 (the mean group size 1.5 would give 8 / 3)
-    assert _group_variance(np.array([1.0, 3.0, 5.0]), np.array([0, 0, 1]), 2) == pytest.approx(3.0)
+    assert _tau2_of_a_mean([1.0, 3.0, 5.0], [0, 0, 1]) == pytest.approx(3.0)
+
+
+def test_few_groups_and_many_columns():
+    # 10 phases and 6 columns that repeat every period: the fit takes up much of the
+    # common error's group directions, which a plain ANOVA of the residuals would read as
+    # a small tau (std too small); the moments that account for the fit do not
+    rng = np.random.default_rng(31)
+    phases, periods, p = 10, 30, 6
+    phase = np.tile(np.arange(phases), periods)
+    base = rng.standard_normal((phases, 1, p))
+    A = base[phase] + 0.05 * rng.standard_normal((phase.size, 1, p))
+    theta = rng.standard_normal(p)
+    fits = []
+    for _ in range(300):
+        y = A @ theta + 0.5 * rng.standard_normal((phases, 1))[phase]
+        fits.append(LeastSquares(row_groups=phase).fit(A, y + 0.3 * rng.standard_normal(y.shape)))
+    ratio = np.array([f.theta_ for f in fits]).std(axis=0, ddof=1) / np.mean(
+        [f.std_ for f in fits], axis=0)  # fmt: skip
+    assert np.all((ratio > 0.8) & (ratio < 1.2)), ratio
+    assert np.median([f.repeating_std_per_output_[0] for f in fits]) == pytest.approx(0.5, rel=0.25)
 
 
 def test_unbalanced_groups_and_a_cut_joint():

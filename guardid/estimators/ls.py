@@ -17,9 +17,12 @@ Errors that repeat (``row_groups=``, (M,) labels, one per sample): rows that sha
 share part of their error, e.g. the rows at the same phase of a periodic excitation, where
 an error that follows the motion (an encoder's rounding through the closed loop) comes back
 every period and no longer averages out over the log. Per output j, the weighted
-residuals are split by one-way random-effects ANOVA into a white part and a part common to
-a group, of variance tau_j^2 = max((MSB - MSW) / n0, 0) (between- and within-group mean
-squares, n0 the effective group size); the covariance then adds
+residuals are split as in a one-way random-effects ANOVA into a white part and a part
+common to a group, of variance tau_j^2: the between- and within-group sums of squares are
+matched to their expectations with the fit's own projection taken into account (Henderson's
+method III; with a constant column alone it is the classical (MSB - MSW) / n0), since the
+fit takes up part of a common error that repeats with the regressor, more so with few
+groups and many columns; clipped at 0. The covariance then adds
 H^-1 [sum_j tau_j^2 (sum_g s_gj s_gj^T - A_j^T W^2 A_j)] H^-1, s_gj the sum of output j's
 weighted rows in group g (the rows of one group counted together instead of apart). With no
 common part (tau_j^2 = 0, or one row per group) it adds nothing.
@@ -168,20 +171,21 @@ class LeastSquares(Estimator):
         if groups.shape != raw.shape[:1]:
             raise ValueError(f"row_groups has shape {groups.shape}, the rows {raw.shape[:1]}")
         _, label = np.unique(groups, return_inverse=True)
-        n_groups, p = int(label.max()) + 1 if label.size else 0, A3.shape[2]
-        meat = np.zeros((p, p))
-        tau = np.zeros(raw.shape[1])
+        blocks = []
         for j, w in enumerate(self._w):
             live = np.any(A3[:, j, :] != 0, axis=1)  # a cut equation's rows carry nothing
-            tau2 = _group_variance(w * raw[live, j], label[live], n_groups)
-            if tau2 > 0.0:
-                rows = w * A3[live, j, :]
-                sums = np.zeros((n_groups, p))
-                np.add.at(sums, label[live], rows)
-                meat += tau2 * (sums.T @ sums - rows.T @ rows)
-                tau[j] = np.sqrt(tau2) / w
-        self.repeating_std_per_output_ = tau
-        if np.any(tau > 0.0):
+            _, lab = np.unique(label[live], return_inverse=True)
+            blocks.append((w * A3[live, j, :], w * raw[live, j], lab))
+        tau2 = _common_variances(blocks, self._bread)
+        p = A3.shape[2]
+        meat = np.zeros((p, p))
+        for (rows, _, lab), t2 in zip(blocks, tau2, strict=True):
+            if t2 > 0.0:
+                sums = np.zeros((int(lab.max()) + 1, p))
+                np.add.at(sums, lab, rows)
+                meat += t2 * (sums.T @ sums - rows.T @ rows)
+        self.repeating_std_per_output_ = np.sqrt(tau2) / np.asarray(self._w, dtype=float)
+        if np.any(tau2 > 0.0):
             extra = self._bread @ meat @ self._bread
             self.cov_ = self.cov_ + 0.5 * (extra + extra.T)
             self._set_std()
@@ -234,22 +238,79 @@ class LeastSquares(Estimator):
         return self
 
 
-def _group_variance(e: np.ndarray, label: np.ndarray, n_groups: int) -> float:
-    """tau^2 of the one-way random-effects model e = a_group + white (ANOVA estimator,
-    unbalanced groups: (MSB - MSW) / n0, clipped at 0); 0 without two groups or without a
-    group of two rows."""
-    n = np.bincount(label, minlength=n_groups).astype(float)
-    n = n[n > 0]
-    total, k = float(n.sum()), n.size
-    if k < 2 or total <= k:
-        return 0.0
-    sums = np.bincount(label, weights=e, minlength=n_groups)
-    sums = sums[np.bincount(label, minlength=n_groups) > 0]
+def _anova_sums(e: np.ndarray, label: np.ndarray):
+    """(between-group sum of squares about the mean, within-group sum of squares, rows per
+    group (G,)) of ``e`` (N,) in groups ``label`` (N,) numbered 0..G-1, each occupied."""
+    n = np.bincount(label).astype(float)
+    sums = np.bincount(label, weights=e)
     means = sums / n
-    msw = (float(e @ e) - float(sums @ means)) / (total - k)
-    msb = float(n @ (means - e.mean()) ** 2) / (k - 1)
-    n0 = (total - float(n @ n) / total) / (k - 1)
-    return max((msb - msw) / n0, 0.0)
+    ssb = float(n @ (means - e.mean()) ** 2) if e.size else 0.0
+    return ssb, float(e @ e) - float(sums @ means), n
+
+
+def _common_variances(blocks, bread: np.ndarray) -> np.ndarray:
+    """tau_j^2 (n_out,) of the model e_j = c_j[group] + white_j per output, from the
+    between- and within-group sums of squares of the residuals (:func:`_anova_sums`),
+    matched to their expectations with the fit's own projection taken into account
+    (Henderson's method III, moments): the residual r_j = e_j - X_j H^-1 sum_k X_k^T e_k
+    loses the parts of the common errors that the regressor can take up, which a plain
+    ANOVA would miss (tau biased low with few groups). ``blocks``: per output (X_j (N_j, p)
+    weighted rows, r_j (N_j,) weighted residuals, group labels (N_j,) 0..G_j-1);
+    ``bread`` H^-1 (p, p). Clipped at 0; 0 for an output without two groups or without a
+    group of two rows."""
+    n_out = len(blocks)
+    moments, rhs, used = [], [], []
+    parts = []
+    for X, r, lab in blocks:
+        if r.size < 2:
+            parts.append(None)
+            continue
+        ssb, ssw, n = _anova_sums(r, lab)
+        sums = np.zeros((n.size, X.shape[1]))
+        np.add.at(sums, lab, X)
+        total = X.sum(axis=0)
+        between = sums.T @ (sums / n[:, None]) - np.outer(total, total) / r.size  # X^T Q_B X
+        within = X.T @ X - sums.T @ (sums / n[:, None])  # X^T Q_W X
+        parts.append((ssb, ssw, n, sums, total, between, within, X.T @ X))
+    for j, part in enumerate(parts):
+        if part is None:
+            continue
+        ssb, ssw, n, sums, total, between, within, _ = part
+        N, G = float(n.sum()), n.size
+        row_b, row_w = np.zeros(2 * n_out), np.zeros(2 * n_out)
+        # own terms: E[e^T Q e] and the cross term -2 E[e^T Q X H^-1 X^T e]
+        own_tau_b = N - float(n @ n) / N
+        own_tau_b -= 2.0 * np.trace(bread @ (sums.T @ (sums - np.outer(n, total) / N)))
+        row_b[j] += own_tau_b
+        row_b[n_out + j] += (G - 1) - 2.0 * np.trace(bread @ between)
+        row_w[n_out + j] += (N - G) - 2.0 * np.trace(bread @ within)
+        # the estimate's own error seen through output j's rows, from every output k
+        for k, other in enumerate(parts):
+            if other is None:
+                continue
+            k_sums, k_xtx = other[3], other[7]
+            common = bread @ (k_sums.T @ k_sums) @ bread
+            white = bread @ k_xtx @ bread
+            row_b[k] += np.sum(between * common)
+            row_b[n_out + k] += np.sum(between * white)
+            row_w[k] += np.sum(within * common)
+            row_w[n_out + k] += np.sum(within * white)
+        moments += [row_b, row_w]
+        rhs += [ssb, ssw]
+        used.append(j)
+    tau2 = np.zeros(n_out)
+    if not moments:
+        return tau2
+    M, b = np.array(moments), np.array(rhs)
+    keep = np.flatnonzero(np.any(M != 0, axis=0))
+    sol = np.linalg.lstsq(M[:, keep], b, rcond=None)[0]
+    full = np.zeros(2 * n_out)
+    full[keep] = sol
+    for j in used:
+        n = parts[j][2]
+        if n.size >= 2 and n.sum() > n.size:  # two groups, one of two rows or more
+            tau2[j] = max(full[j], 0.0)
+    return tau2
 
 
 class WeightedLeastSquares(LeastSquares):
