@@ -193,6 +193,14 @@ class LeastSquares(Estimator):
     def fit(self, A, y):
         """Fit on A (N, n_out, p) / y (N, n_out) or stacked A (M, p) / y (M,)."""
         A3, y2 = as_blocks(A, y)
+        raw = self._fit_pass(A3, y2)
+        if self.row_groups is not None:
+            self._add_repeating(A3, raw)
+        return self
+
+    def _fit_pass(self, A3: np.ndarray, y2: np.ndarray) -> np.ndarray:
+        """One weighted solve on the blocks (the groups' part not added); the residuals
+        y2 - A3 theta_ (N, n_out)."""
         N, n, p = A3.shape
         self.n_samples_ = N
         w = np.ones(n) if self._w is None or self._w.shape != (n,) else self._w
@@ -207,9 +215,7 @@ class LeastSquares(Estimator):
         raw = y2 - A3 @ self.theta_
         self.residual_rms_per_output_ = np.sqrt(np.mean(raw**2, axis=0))
         self.residual_rms_ = float(np.sqrt(np.mean(raw**2)))
-        if self.row_groups is not None:
-            self._add_repeating(A3, raw)
-        return self
+        return raw
 
     def update(self, A_k, y_k):
         """Add one sample (n_out rows) by a QR update of the square-root information."""
@@ -337,15 +343,16 @@ class WeightedLeastSquares(LeastSquares):
         A3, y2 = as_blocks(A, y)
         N, n, p = A3.shape
         self._w = np.ones(n)
-        super().fit(A3, y2)
+        r = self._fit_pass(A3, y2)
         p_j = np.count_nonzero(np.any(A3 != 0, axis=0), axis=1)
         rows_j = np.count_nonzero(np.any(A3 != 0, axis=2) | (y2 != 0), axis=0)  # not all-zero
         dof = np.maximum(rows_j - p_j, 1)
         for _ in range(max(self.n_iter, 1)):
-            r = y2 - A3 @ self.theta_
             sig = np.sqrt(np.sum(r**2, axis=0) / dof)
             sig = np.where(sig > 0, sig, max(float(sig.max()), 1e-300))
             self.sigma_per_output_ = sig
             self.weights_ = self._w = 1.0 / sig
-            super().fit(A3, y2)
+            r = self._fit_pass(A3, y2)
+        if self.row_groups is not None:  # once, on the final weights' residuals
+            self._add_repeating(A3, r)
         return self
