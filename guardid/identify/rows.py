@@ -148,11 +148,11 @@ def period_groups(conds, periods_s) -> np.ndarray | None:
     rows of a run whose excitation repeats with period ``periods_s[k]`` [s] and that spans
     at least two periods are grouped by their phase in it, in bins one row spacing wide
     centred on the first row's phase (so that a group holds the rows of the same phase,
-    about one per period); other rows
-    are a group each. None when no run is grouped. The least squares covariance counts an
-    error common to a group (:class:`~guardid.estimators.LeastSquares`, ``row_groups``):
-    what follows the motion, as the encoder's rounding through the closed loop, comes back
-    every period and does not average out over the log."""
+    about one per period); other rows are a group each. None when no run is grouped. The
+    least squares covariance counts an error common to a group
+    (:class:`~guardid.estimators.LeastSquares`, ``row_groups``): what follows the motion,
+    as the encoder's rounding through the closed loop, comes back every period and does
+    not average out over the log."""
     labels, start, grouped = [], 0, False
     for cond, period in zip(conds, periods_s, strict=True):
         t = np.asarray(cond.t)[cond.mask]
