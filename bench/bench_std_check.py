@@ -31,7 +31,9 @@ gear 400), default300, schroeder300, default1200, schroeder1200 ("all": in this 
 short ones first). Not in "all" (outside the tuned sets): fast120, fast600, fast1200
 (--base-freq 0.25 --harmonics 5), sines600, sines1200, and coarse60, coarse300, coarse1200
 (the default excitation on bench/robots/guard_coarse.yaml: the guard with an encoder four
-times coarser, 12 counts per motor revolution).
+times coarser, 12 counts per motor revolution). Any of default, tracking, slow, schroeder,
+sines, fast, modified or coarse followed by a length in seconds is a set as well
+(modified1200, tracking300, coarse600: lengths nobody named).
 """
 
 from __future__ import annotations
@@ -41,7 +43,7 @@ import contextlib
 import io
 import tempfile
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -84,6 +86,25 @@ EXTRA_SETS: dict[str, Set] = {
 }
 """Sets outside issue 27's list (not in "all"): excitations, lengths and an encoder nobody
 tuned on (docs/std_residuals.md, "Sets nobody tuned on")."""
+_FAMILIES: dict[str, Set] = {
+    **{name: Set(args, 0.0) for name, args in _EXCITATIONS.items()},
+    "fast": Set(_FAST, 0.0),
+    "modified": Set((), 0.0, str(MODIFIED)),
+    "coarse": Set((), 0.0, str(COARSE)),
+}
+"""Any of these followed by a capture length in seconds is a set too (e.g. modified1200,
+tracking300, coarse600): the same excitation and robot at a length nobody named."""
+
+
+def find_set(name: str) -> Set | None:
+    """The named set, or FAMILY followed by a length [s] (:data:`_FAMILIES`); else None."""
+    if name in SETS or name in EXTRA_SETS:
+        return {**SETS, **EXTRA_SETS}[name]
+    family = name.rstrip("0123456789")
+    length = name[len(family) :]
+    if family in _FAMILIES and length.isdigit() and int(length) > 0:
+        return replace(_FAMILIES[family], duration_s=float(length))
+    return None
 
 
 def _guardid(*args: str) -> str | None:
@@ -312,11 +333,12 @@ def main() -> None:
                     help="identify --cutoff HZ (default: chosen from the data)")  # fmt: skip
     a = ap.parse_args()
     wanted = [w.partition(":") for w in (list(SETS) if a.sets == "all" else a.sets.split(","))]
-    known = {**SETS, **EXTRA_SETS}
-    unknown = [n for n, _, k in wanted if n not in known or (k and not k.isdigit())]
+    known = {n: find_set(n) for n, _, _ in wanted}
+    unknown = [n for n, _, k in wanted if known[n] is None or (k and not k.isdigit())]
     if unknown:
-        ap.error(f"--sets: unknown {', '.join(unknown)} (known: {', '.join(known)}, all;"
-                 " NAME:SEEDS for fewer seeds)")  # fmt: skip
+        ap.error(f"--sets: unknown {', '.join(unknown)} (known: "
+                 f"{', '.join([*SETS, *EXTRA_SETS])}, all, or one of {', '.join(_FAMILIES)} "
+                 "followed by a length in s; NAME:SEEDS for fewer seeds)")  # fmt: skip
     names = [n for n, _, _ in wanted]
     n_seeds = {n: int(k) if k else a.seeds for n, _, k in wanted}
     reuse = a.reuse and a.keep is not None
