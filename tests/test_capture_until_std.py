@@ -10,7 +10,6 @@ import subprocess
 import sys
 
 import numpy as np
-import pytest
 
 from guardid.identify import identification_rows
 from guardid.identify.pipeline import identified_names
@@ -116,31 +115,3 @@ phases:
     named = line[0].split(":")[1].split("(")[0]
     # every parameter the batch fit leaves unresolved is named by the live verdict
     assert set(batch.unresolved) <= {x.strip() for x in named.split(",")}
-
-
-def test_the_live_std_counts_an_error_that_repeats_every_period(gap_guard_captures):
-    # 60 s of a 10 s excitation fed row by row as during a capture, and the same log
-    # replayed at once: both bin the live rows by phase and agree; the common part makes
-    # the live std larger than the rows' own, as in the batch fit (tests/test_period_groups)
-    from guardid.excitation.trajectory import trajectory_from_dict
-    from guardid.online.information import UntilStd
-    from guardid.online.tracker import LIVE_LS
-
-    data = read_log(gap_guard_captures[1])
-    trajectory = trajectory_from_dict(data.header["trajectory"])
-    assert trajectory.period == pytest.approx(10.0)
-    c = data.columns
-    t = c["time_s"]
-    q = np.column_stack([c["q_pan_rad"], c["q_tilt_rad"]])
-    i = np.column_stack([c["i_pan_A"], c["i_tilt_A"]])
-    by_row = UntilStd(GUARD, trajectory, 10.0)
-    for k in range(len(t)):
-        by_row.update(float(t[k]), q[k], i[k])
-    replayed = UntilStd(GUARD, trajectory, 10.0)
-    replayed.tracker.feed(t, q, i)
-    live, again = by_row.ls, replayed.tracker.estimators[LIVE_LS]
-    np.testing.assert_allclose(again.std_, live.std_, rtol=1e-6)
-    tau = live.repeating_std_per_output_
-    assert tau.shape == (2,) and np.any(tau > 0.0)
-    assert np.all(live.std_ >= live.ls.std_) and np.any(live.std_ > 1.05 * live.ls.std_)
-    assert by_row.assessment().score.max() > 0.0

@@ -14,10 +14,9 @@ import pytest
 import yaml
 
 from guardid.estimators import LeastSquares, WeightedLeastSquares
-from guardid.estimators.ls import GroupSums, _common_variances
+from guardid.estimators.ls import _anova_sums, _common_variances
 from guardid.identify.rows import period_groups
 from guardid.identify.runs import load_run, trajectory_period
-from guardid.online.information import DecimatedLS
 
 pytestmark = pytest.mark.usefixtures(
     "blas_one_thread"
@@ -83,8 +82,8 @@ def test_repeating_std_per_output_estimates_the_common_part():
 def _tau2_of_a_mean(e, label):
     """tau^2 when the only column is a constant (the classical one-way ANOVA's model)."""
     ones = np.ones((len(e), 1))
-    part = GroupSums.of_rows(ones, np.asarray(e, float), np.asarray(label))
-    return _common_variances([part], np.array([[1.0 / len(e)]]))[0]
+    return _common_variances([(ones, np.asarray(e, float), np.asarray(label))],
+                             np.array([[1.0 / len(e)]]))[0]  # fmt: skip
 
 
 def test_common_variance_by_hand():
@@ -92,8 +91,8 @@ def test_common_variance_by_hand():
     # = 16, SSW = 4; with a fitted mean the moments are the classical ANOVA's: MSW = 4 / 2
     # = 2, MSB = 16, n0 = (4 - 8 / 4) / 1 = 2: tau^2 = (16 - 2) / 2 = 7
     label = np.array([0, 0, 1, 1])
-    part = GroupSums.of_rows(np.ones((4, 1)), np.array([1.0, 3.0, 5.0, 7.0]), label)
-    assert part.anova() == pytest.approx((16.0, 4.0)) and list(part.n) == [2, 2]
+    ssb, ssw, n = _anova_sums(np.array([1.0, 3.0, 5.0, 7.0]), label)
+    assert (ssb, ssw) == pytest.approx((16.0, 4.0)) and list(n) == [2, 2]
     assert _tau2_of_a_mean([1.0, 3.0, 5.0, 7.0], label) == pytest.approx(7.0)
     # equal group means: MSB = 0 < MSW, clipped at 0
     assert _tau2_of_a_mean([1.0, -1.0, 1.0, -1.0], label) == 0.0
@@ -262,49 +261,3 @@ def test_the_groups_counted_are_the_phases_not_the_ungrouped_rows():
     assert phase_group_count(groups) == 4
     est = SimpleNamespace(repeating_std_per_output_=np.zeros(2))
     assert repeating_settings(est, groups)["repeating_residual"]["groups"] == 4
-
-
-# -- the live least squares of capture --until-std ----------------------------------------
-
-DT = 0.01  # [s] between the synthetic rows: the period is PHASES rows
-
-
-def _live(A, y, period_s=PHASES * DT, rows=None):
-    """DecimatedLS fed the rows one by one, at DT apart, told the period."""
-    live = DecimatedLS(1).repeat_every(period_s, DT)
-    for i in range(len(A)):
-        keep = None if rows is None else rows[i]
-        a, b = (A[i], y[i]) if keep is None else (A[i][keep], y[i][keep])
-        live.update(a, b, i * DT, keep)
-    return live
-
-
-def test_live_least_squares_counts_the_repeating_error_as_the_batch_fit_does():
-    phase, theta, draws = _draws(1, common_sd=0.4, seed=11)
-    A, y = draws[0]
-    live, batch = _live(A, y), LeastSquares(row_groups=phase).fit(A, y)
-    np.testing.assert_allclose(live.theta_, batch.theta_, rtol=1e-9)
-    np.testing.assert_allclose(live.cov_, batch.cov_, rtol=1e-7)
-    np.testing.assert_allclose(live.repeating_std_per_output_,
-                               batch.repeating_std_per_output_, rtol=1e-7)  # fmt: skip
-    assert np.all(live.std_ > 1.3 * LeastSquares().fit(A, y).std_)
-    # under two periods the rows are still counted apart, as the batch fit counts a run
-    # that spans less than two periods
-    short = _live(A[: 2 * PHASES - 1], y[: 2 * PHASES - 1])
-    plain = LeastSquares().fit(A[: 2 * PHASES - 1], y[: 2 * PHASES - 1])
-    np.testing.assert_allclose(short.std_, plain.std_, rtol=1e-9)
-    assert not np.any(short.repeating_std_per_output_)
-
-
-def test_live_least_squares_with_a_joints_equation_left_out():
-    # rows where joint 1 is stuck carry joint 0's equation only: the batch fit sees them
-    # as all-zero rows of joint 1 (a cut equation)
-    phase, theta, draws = _draws(1, common_sd=0.4, seed=12)
-    A, y = draws[0]
-    rows = np.ones((len(A), 2), dtype=bool)
-    rows[5::7, 1] = False
-    Ac, yc = A.copy(), y.copy()
-    Ac[~rows], yc[~rows] = 0.0, 0.0
-    live, batch = _live(A, y, rows=rows), LeastSquares(row_groups=phase).fit(Ac, yc)
-    np.testing.assert_allclose(live.theta_, batch.theta_, rtol=1e-9)
-    np.testing.assert_allclose(live.cov_, batch.cov_, rtol=1e-7)

@@ -171,15 +171,23 @@ class LeastSquares(Estimator):
         if groups.shape != raw.shape[:1]:
             raise ValueError(f"row_groups has shape {groups.shape}, the rows {raw.shape[:1]}")
         _, label = np.unique(groups, return_inverse=True)
-        parts = []
+        blocks = []
         for j, w in enumerate(self._w):
             live = np.any(A3[:, j, :] != 0, axis=1)  # a cut equation's rows carry nothing
             _, lab = np.unique(label[live], return_inverse=True)
-            parts.append(GroupSums.of_rows(w * A3[live, j, :], w * raw[live, j], lab))
-        extra, tau2 = repeating_covariance(parts, self._bread)
+            blocks.append((w * A3[live, j, :], w * raw[live, j], lab))
+        tau2 = _common_variances(blocks, self._bread)
+        p = A3.shape[2]
+        meat = np.zeros((p, p))
+        for (rows, _, lab), t2 in zip(blocks, tau2, strict=True):
+            if t2 > 0.0:
+                sums = np.zeros((int(lab.max()) + 1, p))
+                np.add.at(sums, lab, rows)
+                meat += t2 * (sums.T @ sums - rows.T @ rows)
         self.repeating_std_per_output_ = np.sqrt(tau2) / np.asarray(self._w, dtype=float)
         if np.any(tau2 > 0.0):
-            self.cov_ = self.cov_ + extra
+            extra = self._bread @ meat @ self._bread
+            self.cov_ = self.cov_ + 0.5 * (extra + extra.T)
             self._set_std()
 
     def fit(self, A, y):
@@ -236,78 +244,40 @@ class LeastSquares(Estimator):
         return self
 
 
-@dataclass(frozen=True)
-class GroupSums:
-    """What the common error's variance and covariance need of one output's (weighted) rows
-    X (N, p) and residuals r (N,) in groups: ``n`` (G,) rows per group (each > 0),
-    ``sums`` (G, p) each group's sum of rows, ``xtx`` (p, p) X^T X, ``rsum`` (G,) each
-    group's sum of residuals, ``rss`` sum r^2. Kept row by row by the live least squares
-    (:class:`guardid.online.information.DecimatedLS`), from the rows in a batch fit."""
-
-    n: np.ndarray
-    sums: np.ndarray
-    xtx: np.ndarray
-    rsum: np.ndarray
-    rss: float
-
-    @classmethod
-    def of_rows(cls, X: np.ndarray, r: np.ndarray, label: np.ndarray) -> GroupSums:
-        """From rows ``X`` (N, p), residuals ``r`` (N,) and labels (N,) 0..G-1, each used."""
-        G = int(label.max()) + 1 if label.size else 0
-        sums = np.zeros((G, X.shape[1]))
-        np.add.at(sums, label, X)
-        n = np.bincount(label, minlength=G).astype(float)
-        rsum = np.bincount(label, weights=r, minlength=G)
-        return cls(n, sums, X.T @ X, rsum, float(r @ r))
-
-    def anova(self) -> tuple[float, float]:
-        """(between-group sum of squares of the residuals about their mean, within-group
-        sum of squares)."""
-        N = float(self.n.sum())
-        if N == 0.0:
-            return 0.0, 0.0
-        means = self.rsum / self.n
-        ssb = float(self.n @ (means - self.rsum.sum() / N) ** 2)
-        return ssb, max(self.rss - float(self.rsum @ means), 0.0)
+def _anova_sums(e: np.ndarray, label: np.ndarray):
+    """(between-group sum of squares about the mean, within-group sum of squares, rows per
+    group (G,)) of ``e`` (N,) in groups ``label`` (N,) numbered 0..G-1, each occupied."""
+    n = np.bincount(label).astype(float)
+    sums = np.bincount(label, weights=e)
+    means = sums / n
+    ssb = float(n @ (means - e.mean()) ** 2) if e.size else 0.0
+    return ssb, float(e @ e) - float(sums @ means), n
 
 
-def repeating_covariance(parts, bread: np.ndarray):
-    """(the covariance the common errors add (p, p), tau_j^2 (n_out,)) of the outputs'
-    :class:`GroupSums` ``parts`` with H^-1 ``bread`` (p, p): H^-1 [sum_j tau_j^2
-    (sum_g s_gj s_gj^T - X_j^T X_j)] H^-1 (module docstring), symmetrised."""
-    tau2 = _common_variances(parts, bread)
-    p = bread.shape[0]
-    meat = np.zeros((p, p))
-    for part, t2 in zip(parts, tau2, strict=True):
-        if t2 > 0.0:
-            meat += t2 * (part.sums.T @ part.sums - part.xtx)
-    extra = bread @ meat @ bread
-    return 0.5 * (extra + extra.T), tau2
-
-
-def _common_variances(parts, bread: np.ndarray) -> np.ndarray:
+def _common_variances(blocks, bread: np.ndarray) -> np.ndarray:
     """tau_j^2 (n_out,) of the model e_j = c_j[group] + white_j per output, from the
-    between- and within-group sums of squares of the residuals (:meth:`GroupSums.anova`),
+    between- and within-group sums of squares of the residuals (:func:`_anova_sums`),
     matched to their expectations with the fit's own projection taken into account
     (Henderson's method III, moments): the residual r_j = e_j - X_j H^-1 sum_k X_k^T e_k
     loses the parts of the common errors that the regressor can take up, which a plain
-    ANOVA would miss (tau biased low with few groups). ``parts``: per output the
-    :class:`GroupSums` of its weighted rows and residuals; ``bread`` H^-1 (p, p). Clipped
-    at 0; 0 for an output without two groups or without a group of two rows."""
-    n_out = len(parts)
+    ANOVA would miss (tau biased low with few groups). ``blocks``: per output (X_j (N_j, p)
+    weighted rows, r_j (N_j,) weighted residuals, group labels (N_j,) 0..G_j-1);
+    ``bread`` H^-1 (p, p). Clipped at 0; 0 for an output without two groups or without a
+    group of two rows."""
+    n_out = len(blocks)
     moments, rhs, used = [], [], []
-    parts, given = [], parts
-    for g in given:
-        N = float(g.n.sum())
-        if N < 2:
+    parts = []
+    for X, r, lab in blocks:
+        if r.size < 2:
             parts.append(None)
             continue
-        ssb, ssw = g.anova()
-        n, sums = g.n, g.sums
-        total = sums.sum(axis=0)
-        between = sums.T @ (sums / n[:, None]) - np.outer(total, total) / N  # X^T Q_B X
-        within = g.xtx - sums.T @ (sums / n[:, None])  # X^T Q_W X
-        parts.append((ssb, ssw, n, sums, total, between, within, g.xtx))
+        ssb, ssw, n = _anova_sums(r, lab)
+        sums = np.zeros((n.size, X.shape[1]))
+        np.add.at(sums, lab, X)
+        total = X.sum(axis=0)
+        between = sums.T @ (sums / n[:, None]) - np.outer(total, total) / r.size  # X^T Q_B X
+        within = X.T @ X - sums.T @ (sums / n[:, None])  # X^T Q_W X
+        parts.append((ssb, ssw, n, sums, total, between, within, X.T @ X))
     for j, part in enumerate(parts):
         if part is None:
             continue

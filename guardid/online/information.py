@@ -5,11 +5,7 @@
 grows row by row (a QR update per row it takes, never a refit), and it takes every k-th used
 row only, k the offline pipeline's decimation (about the cut-off's Nyquist rate), because
 rows closer than that share their filtered noise and would make the standard deviations
-look smaller than they are. Told the excitation's period (:meth:`DecimatedLS.repeat_every`),
-it also keeps each phase's sums of rows and efforts, so that its covariance counts an
-error that repeats every period as the batch least squares does
-(:class:`guardid.estimators.LeastSquares` with ``row_groups``; phases as
-:func:`guardid.identify.rows.period_groups` bins them), once the rows span two periods.
+look smaller than they are.
 
 :func:`assess` is the rule ``capture --until-std`` stops on and the HTML report's verdict
 uses: a parameter is *resolved* when its standard deviation is within the target share of
@@ -29,7 +25,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from guardid.estimators import LeastSquares
-from guardid.estimators.ls import GroupSums, repeating_covariance
 
 ZERO_SIGMAS = 3.0  #: an estimate within this many std of zero is "consistent with zero"
 SMALL_FRACTION = 0.1
@@ -41,10 +36,7 @@ class DecimatedLS:
     """Least squares on every ``every``-th :meth:`update` (a row of 1..n joint equations).
 
     After the first row it takes: ``theta_`` (b,), ``std_`` (b,) and ``rel_std_`` (b,) [%]
-    of :class:`guardid.estimators.LeastSquares`, ``cond_``; ``rows_`` the rows taken. After
-    :meth:`repeat_every`, ``cov_``, ``std_`` and ``rel_std_`` count an error common to the
-    rows of one phase of the period once the rows taken span two periods
-    (``repeating_std_per_output_`` (n,) its std per joint [N m], 0 before).
+    of :class:`guardid.estimators.LeastSquares`, ``cond_``; ``rows_`` the rows taken.
     """
 
     def __init__(self, every: int = 1) -> None:
@@ -52,104 +44,18 @@ class DecimatedLS:
         self.ls = LeastSquares()
         self._seen = 0
         self.rows_ = 0
-        self._phases = None  # (period [s], bins) once told the period
-        self._sums = None
-        self._t0 = self._t_last = None
-        self._cached = (-1, None)
 
     @staticmethod
     def every_for(cutoff_hz: float, dt_s: float) -> int:
         """The offline pipeline's decimation: one row per half cut-off period [-]."""
         return max(1, int(1.0 / (dt_s * 2.0 * cutoff_hz)))
 
-    def repeat_every(self, period_s: float | None, dt_s: float) -> DecimatedLS:
-        """Count an error that repeats every ``period_s`` [s] of the excitation (None or 0:
-        none), the telemetry rows ``dt_s`` [s] apart: the rows taken are binned by phase,
-        one bin per row spacing (``every`` x ``dt_s``), centred on the first row's phase."""
-        if period_s and period_s > 0.0:
-            bins = max(int(round(period_s / (self.every * dt_s))), 1)
-            self._phases = (float(period_s), bins)
-        return self
-
-    def update(self, A_k, y_k, t_s: float | None = None, joints=None) -> DecimatedLS:
-        """Row ``A_k`` (m, b), ``y_k`` (m,) at time ``t_s`` [s] (needed after
-        :meth:`repeat_every`); ``joints`` (n,) bool: which joints' equations the m rows are
-        (None: all)."""
+    def update(self, A_k, y_k) -> DecimatedLS:
         self._seen += 1
         if (self._seen - 1) % self.every == 0:
             self.ls.update(A_k, y_k)
             self.rows_ += 1
-            if self._phases is not None:
-                self._add_to_phase(np.atleast_2d(A_k), np.atleast_1d(y_k), t_s, joints)
         return self
-
-    def _add_to_phase(self, A, y, t_s, joints) -> None:
-        if t_s is None:
-            raise ValueError("a DecimatedLS told the period needs each row's time")
-        period, bins = self._phases
-        n = A.shape[0] if joints is None else len(joints)
-        idx = np.arange(n) if joints is None else np.flatnonzero(joints)
-        if self._sums is None:
-            p = A.shape[1]
-            self._t0 = float(t_s)
-            self._sums = {
-                "n": np.zeros((bins, n)), "sums": np.zeros((bins, n, p)),
-                "ysum": np.zeros((bins, n)), "xtx": np.zeros((n, p, p)),
-                "xty": np.zeros((n, p)), "yty": np.zeros(n),
-            }  # fmt: skip
-        self._t_last = float(t_s)
-        g = int(np.rint((float(t_s) - self._t0) % period / period * bins)) % bins
-        s = self._sums
-        s["n"][g, idx] += 1.0
-        s["sums"][g, idx] += A
-        s["ysum"][g, idx] += y
-        s["xtx"][idx] += A[:, :, None] * A[:, None, :]
-        s["xty"][idx] += A * y[:, None]
-        s["yty"][idx] += y * y
-
-    def _grouped(self):
-        """(cov (b, b), tau per joint (n,)) with the common error once two periods are
-        spanned; else (None, None)."""
-        s = self._sums
-        if s is None or self._t_last - self._t0 < 2.0 * self._phases[0]:
-            return None, None
-        if self._cached[0] == self.rows_:
-            return self._cached[1]
-        ls = self.ls
-        theta = ls.theta_
-        parts = []
-        for j in range(s["n"].shape[1]):
-            used = s["n"][:, j] > 0
-            rss = s["yty"][j] - 2.0 * theta @ s["xty"][j] + theta @ s["xtx"][j] @ theta
-            parts.append(GroupSums(
-                s["n"][used, j], s["sums"][used, j], s["xtx"][j],
-                s["ysum"][used, j] - s["sums"][used, j] @ theta, max(float(rss), 0.0),
-            ))  # fmt: skip
-        extra, tau2 = repeating_covariance(parts, ls._bread)
-        out = (ls.cov_ + extra, np.sqrt(tau2))
-        self._cached = (self.rows_, out)
-        return out
-
-    @property
-    def cov_(self) -> np.ndarray:
-        cov, _ = self._grouped()
-        return self.ls.cov_ if cov is None else cov
-
-    @property
-    def std_(self) -> np.ndarray:
-        return np.sqrt(np.diag(self.cov_))
-
-    @property
-    def rel_std_(self) -> np.ndarray:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return 100.0 * self.std_ / np.abs(self.ls.theta_)
-
-    @property
-    def repeating_std_per_output_(self) -> np.ndarray:
-        _, tau = self._grouped()
-        if tau is None:
-            return np.zeros(0 if self._sums is None else self._sums["n"].shape[1])
-        return tau
 
     def __getattr__(self, name):
         if name.endswith("_") and not name.startswith("_"):
@@ -245,8 +151,8 @@ class UntilStd:
             detector=False, lam=1.0, rho=None, keep_history=False,
             guard_periods=STICTION_GUARD_PERIODS,
         )  # fmt: skip
+        self.ls = self.tracker.estimators[LIVE_LS]
         self.period_s = float(getattr(trajectory, "period", 0.0) or 0.0)
-        self.ls = self.tracker.estimators[LIVE_LS].repeat_every(self.period_s, self.tracker.dt)
         self._every = max(1, int(round(CHECK_EVERY_S / self.tracker.dt)))
         self.t_s = 0.0
         self._rows = 0

@@ -58,7 +58,6 @@ from scipy.signal import lfilter
 from guardid.estimators import RLS, Hopfield
 from guardid.estimators.hopfield import _SMAX, _TAU
 from guardid.online import replay_native
-from guardid.online.tracker import LIVE_LS
 
 BLOCK = 2048
 """Used rows per fast block (memory: about 4 kB per row)."""
@@ -176,9 +175,7 @@ class MethodReplay:
         ok = rows.ok[i]
         theta = tk.estimate(m)
         alarm = det.update(t, ok, y - A @ theta, theta) if det is not None else None
-        if m == LIVE_LS:  # the live least squares bins its rows by phase
-            est.update(A, y, t, ok)
-        elif t >= tk._hold_until[m]:
+        if t >= tk._hold_until[m]:
             est.update(A, y)
         if alarm is not None:
             self._restart(rows, i, alarm)

@@ -388,9 +388,7 @@ class OnlineIdentifier:
             theta = self.estimate(m)
             det = self.detectors.get(m)
             alarm = det.update(t, rows, y - A @ theta, theta) if det is not None else None
-            if m == LIVE_LS:  # the live least squares bins its rows by phase
-                est.update(A, y, t, rows)
-            elif t >= self._hold_until[m]:
+            if t >= self._hold_until[m]:
                 est.update(A, y)
             if alarm is not None:
                 self._restart_at(m, est, alarm)
