@@ -86,8 +86,7 @@ def _load_trajectory(path: str):
     type=POSITIVE,
     default=None,
     help="Keep the robot on its excitation until every base parameter is identified to this "
-    "relative standard deviation [%] (live least squares on the causal conditioning, "
-    "counting an error that repeats every period once two periods are in; a "
+    "relative standard deviation [%] (live least squares on the causal conditioning; a "
     "parameter within 3 std of zero counts when its std is this share of its kind's "
     "scale), at least one trajectory period; --duration / --periods is then the cap "
     f"[default cap: {UNTIL_STD_CAP_S:g} s]. Exit 4 when the cap comes first.",
