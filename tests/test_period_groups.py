@@ -202,6 +202,8 @@ def test_a_capture_log_is_grouped_by_its_excitation_period(gap_guard_captures, t
     for m in ("ls", "wls"):
         rep = result.results[m].settings["repeating_residual"]
         assert len(rep["std_per_joint"]) == 2 and all(x >= 0 for x in rep["std_per_joint"])
+        share = rep["variance_share"]
+        assert len(share) == len(result.names) and all(0.0 <= x <= 1.0 for x in share)
         # groups: about one per row spacing of the period (rows 1 / (2 x cut-off) apart)
         spacing = 1.0 / (2.0 * result.conditioning.cutoff_hz)
         assert 0.5 * run.excitation_period_s / spacing <= rep["groups"]
@@ -217,7 +219,12 @@ def test_a_capture_log_is_grouped_by_its_excitation_period(gap_guard_captures, t
     }
     line = _repeating_line(result, load_robot("guard"))
     assert line.startswith("WLS: its std counts an error that repeats every excitation period")
-    assert "pan 0.002, tilt 0 N m per row, over 40 phase groups" in line
+    assert "pan 0.002, tilt 0 N m per row, over 40 phase groups;" in line
+    share = [0.0] * len(result.names)
+    share[3] = 0.25
+    result.results["wls"].settings["repeating_residual"]["variance_share"] = share
+    line = _repeating_line(result, load_robot("guard"))
+    assert f"up to 25 % of a parameter's variance ({result.names[3]})" in line
     result.results["wls"].settings["repeating_residual"]["std_per_joint"] = [0.0, 0.0]
     assert _repeating_line(result, load_robot("guard")) == ""
 
@@ -261,3 +268,72 @@ def test_the_groups_counted_are_the_phases_not_the_ungrouped_rows():
     assert phase_group_count(groups) == 4
     est = SimpleNamespace(repeating_std_per_output_=np.zeros(2))
     assert repeating_settings(est, groups)["repeating_residual"]["groups"] == 4
+
+
+# -- the share of the variance that repeats, and what a longer run does to it -------------
+
+
+def test_repeating_share_by_hand():
+    # the constant column alone (tests above: tau^2 = 7 for groups (1, 3), (5, 7)): the
+    # mean's variance from the rows apart is s^2 / N = (20 / 3) / 4 = 5 / 3; the groups add
+    # tau^2 (sum_g n_g^2 - N) / N^2 = 7 (8 - 4) / 16 = 1.75: share 1.75 / (1.75 + 5 / 3)
+    est = LeastSquares(row_groups=np.array([0, 0, 1, 1])).fit(
+        np.ones((4, 1)), np.array([1.0, 3.0, 5.0, 7.0])
+    )
+    assert est.repeating_share_[0] == pytest.approx(1.75 / (1.75 + 5.0 / 3.0))
+    assert est.cov_[0, 0] == pytest.approx(1.75 + 5.0 / 3.0)
+    # nothing common: no share
+    flat = LeastSquares(row_groups=np.array([0, 0, 1, 1])).fit(
+        np.ones((4, 1)), np.array([1.0, -1.0, 1.0, -1.0])
+    )
+    assert flat.repeating_share_[0] == 0.0
+
+
+def _spread(periods, draws, common_sd, seed):
+    """(spread of LS estimates over the draws (3,), median repeating share (3,)) with
+    ``periods`` periods of the regressor of :func:`_draws` and a common error per phase."""
+    rng = np.random.default_rng(seed)
+    phase = np.tile(np.arange(PHASES), periods)
+    s = 2 * np.pi * phase / PHASES
+    A = np.zeros((phase.size, 2, 3))
+    A[:, 0, :] = np.column_stack([np.sin(s), np.cos(2 * s), np.ones_like(s)])
+    A[:, 1, :] = np.column_stack([np.cos(s), np.sin(3 * s), np.sign(np.sin(s) + 0.1)])
+    A += 0.05 * rng.standard_normal(A.shape)
+    theta = np.array([1.0, -2.0, 0.5])
+    values, shares = [], []
+    for _ in range(draws):
+        y = A @ theta + common_sd * rng.standard_normal((PHASES, 2))[phase]
+        y = y + rng.standard_normal((phase.size, 2)) * np.array([0.5, 1.0])
+        est = LeastSquares(row_groups=phase).fit(A, y)
+        values.append(est.theta_)
+        shares.append(est.repeating_share_)
+    return np.std(values, axis=0, ddof=1), np.median(shares, axis=0)
+
+
+def test_the_share_that_repeats_is_what_a_longer_run_does_not_reduce():
+    # twice the periods halve the rows' own variance and leave the common part's: the
+    # spread's ratio is sqrt((1 - s) / 2 + s), s the share, not 1 / sqrt(2)
+    short, share = _spread(12, 400, common_sd=0.25, seed=21)
+    long, _ = _spread(24, 400, common_sd=0.25, seed=22)
+    predicted = np.sqrt((1.0 - share) / 2.0 + share)
+    assert np.all((share > 0.2) & (share < 0.8)), share
+    np.testing.assert_allclose(long / short, predicted, rtol=0.1)
+    assert np.all(long / short > 1.1 / np.sqrt(2.0))
+
+
+def test_poorly_identifiable_says_what_would_help():
+    from guardid.identify.pipeline import poorly_identifiable
+
+    names = ("a", "b", "c", "d")
+    got = poorly_identifiable(names, [5.0, 40.0, 40.0, float("nan")], [0.9, 0.49, 0.5, 0.9])
+    assert len(got) == 2  # 5 % is identified; an undefined relative std is not judged
+    assert got[0] == (
+        "b: relative standard deviation 40 % (poorly identifiable; a richer excitation or "
+        "a longer run would help)"
+    )
+    assert got[1].startswith("c: relative standard deviation 40 % (poorly identifiable; 50 %")
+    assert "a longer run of the same excitation does not average out" in got[1]
+    assert "another excitation would help" in got[1]
+    # without groups, the plain advice
+    plain = poorly_identifiable(names[:1], [40.0])
+    assert plain[0].endswith("a richer excitation or a longer run would help)")

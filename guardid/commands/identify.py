@@ -422,9 +422,14 @@ def _repeating_line(result, description) -> str:
     unit = effort_units(result, description)
     parts = ", ".join(f"{j.name} {x:.3g}" for j, x in
                       zip(description.joints, rep["std_per_joint"], strict=True))  # fmt: skip
+    share = rep.get("variance_share")
+    most = ""
+    if share:
+        k = max(range(len(share)), key=share.__getitem__)
+        most = f"; up to {100 * share[k]:.0f} % of a parameter's variance ({result.names[k]})"
     return (
         f"{m.upper()}: its std counts an error that repeats every excitation period "
-        f"({parts} {unit} per row, over {rep['groups']} phase groups; params.yaml: "
+        f"({parts} {unit} per row, over {rep['groups']} phase groups{most}; params.yaml: "
         "repeating_residual)"
     )
 

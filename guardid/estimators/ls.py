@@ -88,7 +88,9 @@ class LeastSquares(Estimator):
     sigma^2 H^-1 A^T W^2 A H^-1 with H the compensated normal matrix.
     With ``row_groups`` ((N,) labels of the samples ``fit`` is given; module docstring),
     ``cov_`` also holds the groups' common error and ``repeating_std_per_output_`` (n_out,)
-    is that common part's std per output (tau_j / w_j, unit of y; 0 where there is none).
+    is that common part's std per output (tau_j / w_j, unit of y; 0 where there is none),
+    ``repeating_share_`` (p,) the share of each parameter's variance it makes [0-1]: the
+    part a longer run of the same excitation does not reduce.
     ``update`` ignores the groups.
     """
 
@@ -185,10 +187,14 @@ class LeastSquares(Estimator):
                 np.add.at(sums, lab, rows)
                 meat += t2 * (sums.T @ sums - rows.T @ rows)
         self.repeating_std_per_output_ = np.sqrt(tau2) / np.asarray(self._w, dtype=float)
+        self.repeating_share_ = np.zeros(p)
         if np.any(tau2 > 0.0):
             extra = self._bread @ meat @ self._bread
             self.cov_ = self.cov_ + 0.5 * (extra + extra.T)
             self._set_std()
+            with np.errstate(divide="ignore", invalid="ignore"):
+                share = np.diag(extra) / np.diag(self.cov_)
+            self.repeating_share_ = np.clip(np.nan_to_num(share), 0.0, 1.0)
 
     def fit(self, A, y):
         """Fit on A (N, n_out, p) / y (N, n_out) or stacked A (M, p) / y (M,)."""

@@ -168,15 +168,19 @@ def method_help() -> str:
 
 def repeating_settings(est, groups) -> dict:
     """What params.yaml records of the rows' groups (:func:`guardid.identify.rows.period_groups`)
-    for a least squares fit ``est``: their number and the std per joint of the residual
-    part common to a group [unit of the effort rows]; {} when the rows were not grouped."""
+    for a least squares fit ``est``: their number, the std per joint of the residual
+    part common to a group [unit of the effort rows] and the share of each parameter's
+    variance that part makes [0-1]; {} when the rows were not grouped."""
     tau = getattr(est, "repeating_std_per_output_", None)
     if groups is None or tau is None:
         return {}
     from guardid.identify.rows import phase_group_count
 
-    return {"repeating_residual": {"groups": phase_group_count(groups),
-                                   "std_per_joint": [float(x) for x in tau]}}  # fmt: skip
+    share = getattr(est, "repeating_share_", None)
+    out = {"groups": phase_group_count(groups), "std_per_joint": [float(x) for x in tau]}
+    if share is not None:
+        out["variance_share"] = [round(float(x), 4) for x in share]
+    return {"repeating_residual": out}
 
 
 @register("ls")

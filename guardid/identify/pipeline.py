@@ -235,17 +235,39 @@ def _not_converged(results, ls) -> list[str]:
     return out
 
 
+REPEATING_SHARE = 0.5
+"""A parameter whose variance is at least this share an error that repeats every excitation
+period is told that a longer run of the same excitation helps little [-]."""
+
+
+def poorly_identifiable(names, rel_std_pct, repeating_share=None) -> list[str]:
+    """One warning per parameter whose relative std exceeds :data:`POOR_REL_STD_PCT` [%],
+    with what would help: a richer excitation or a longer run; only another excitation when
+    at least :data:`REPEATING_SHARE` of its variance repeats every period (``repeating_share``
+    (b,), :class:`~guardid.estimators.LeastSquares`' ``repeating_share_``), which more
+    periods of the same excitation do not average out (twice the run: that part stays)."""
+    share = np.zeros(len(names)) if repeating_share is None else np.asarray(repeating_share)
+    out = []
+    for name, r, s in zip(names, rel_std_pct, share, strict=True):
+        if not r > POOR_REL_STD_PCT:
+            continue
+        if s >= REPEATING_SHARE:
+            why = (f"{100 * s:.0f} % of its variance is an error that repeats every "
+                   "excitation period, which a longer run of the same excitation does not "
+                   "average out; another excitation would help")  # fmt: skip
+        else:
+            why = "a richer excitation or a longer run would help"
+        out.append(f"{name}: relative standard deviation {r:.0f} % (poorly identifiable; {why})")
+    return out
+
+
 def _result_of(rows: FitRows, results, options, torque) -> Identification:
     """The result stage: warnings, trust checks and the motors beside the estimates."""
     cond, ls, names, runs = rows.rows.cond, rows.ls, rows.names, rows.runs
     ref = reference_method(results)
     rel_std = results[ref].rel_std_pct if ref is not None else ls.rel_std_
-    warnings = [
-        f"{name}: relative standard deviation {r:.0f} % (poorly identifiable; "
-        "a richer excitation or a longer run would help)"
-        for name, r in zip(names, rel_std, strict=True)
-        if r > POOR_REL_STD_PCT
-    ]
+    repeating = results[ref].settings.get("repeating_residual", {}) if ref is not None else {}
+    warnings = poorly_identifiable(names, rel_std, repeating.get("variance_share"))
     notes = [n for r in results.values() for n in r.notes]
     warnings += rows.rows.warnings + _moving_with_cutoff(rows.rows.choice, names, ls) + notes
     warnings += _not_converged(results, ls)
