@@ -337,3 +337,21 @@ def test_poorly_identifiable_says_what_would_help():
     # without groups, the plain advice
     plain = poorly_identifiable(names[:1], [40.0])
     assert plain[0].endswith("a richer excitation or a longer run would help)")
+
+
+def test_identify_tells_a_repeating_variance_in_its_warnings(gap_guard_captures, monkeypatch):
+    # with the threshold at a hair above 0, every poorly identified parameter with any
+    # repeating share is told so: the share reaches the warnings from the verdict's method
+    from guardid.identify import pipeline
+    from guardid.identify.pipeline import IdentifyOptions, identify
+    from guardid.robot import load_robot
+
+    monkeypatch.setattr(pipeline, "REPEATING_SHARE", 1e-9)
+    run = load_run(gap_guard_captures[1])
+    result = identify([run], load_robot("guard"), IdentifyOptions(methods=("wls",)))
+    share = result.results["wls"].settings["repeating_residual"]["variance_share"]
+    poor = [w for w in result.warnings if "poorly identifiable" in w]
+    assert poor and any(s > 0 for s in share)
+    for w in poor:
+        k = result.names.index(w.split(":")[0])
+        assert ("repeats every excitation period" in w) is (share[k] > 0), w
