@@ -25,12 +25,12 @@ pytestmark = pytest.mark.usefixtures(
 PERIODS, PHASES = 12, 30  # rows: 12 periods of 30 phases
 
 
-def _draws(n_draws: int, common_sd: float, seed: int = 7):
+def _draws(n_draws: int, common_sd: float, seed: int = 7, periods: int = PERIODS):
     """Per draw (A (M, 2, 3), y (M, 2)) with the regressor repeating every period (a
     periodic excitation), a common error per phase (sd ``common_sd``) and white noise of
     sd 0.5 (joint 0) and 1.0 (joint 1); theta = (1, -2, 0.5)."""
     rng = np.random.default_rng(seed)
-    phase = np.tile(np.arange(PHASES), PERIODS)
+    phase = np.tile(np.arange(PHASES), periods)
     s = 2 * np.pi * phase / PHASES
     A = np.zeros((phase.size, 2, 3))
     A[:, 0, :] = np.column_stack([np.sin(s), np.cos(2 * s), np.ones_like(s)])
@@ -291,23 +291,11 @@ def test_repeating_share_by_hand():
 
 def _spread(periods, draws, common_sd, seed):
     """(spread of LS estimates over the draws (3,), median repeating share (3,)) with
-    ``periods`` periods of the regressor of :func:`_draws` and a common error per phase."""
-    rng = np.random.default_rng(seed)
-    phase = np.tile(np.arange(PHASES), periods)
-    s = 2 * np.pi * phase / PHASES
-    A = np.zeros((phase.size, 2, 3))
-    A[:, 0, :] = np.column_stack([np.sin(s), np.cos(2 * s), np.ones_like(s)])
-    A[:, 1, :] = np.column_stack([np.cos(s), np.sin(3 * s), np.sign(np.sin(s) + 0.1)])
-    A += 0.05 * rng.standard_normal(A.shape)
-    theta = np.array([1.0, -2.0, 0.5])
-    values, shares = [], []
-    for _ in range(draws):
-        y = A @ theta + common_sd * rng.standard_normal((PHASES, 2))[phase]
-        y = y + rng.standard_normal((phase.size, 2)) * np.array([0.5, 1.0])
-        est = LeastSquares(row_groups=phase).fit(A, y)
-        values.append(est.theta_)
-        shares.append(est.repeating_share_)
-    return np.std(values, axis=0, ddof=1), np.median(shares, axis=0)
+    ``periods`` periods of :func:`_draws`' regressor and common error."""
+    phase, _, data = _draws(draws, common_sd, seed, periods)
+    fits = [LeastSquares(row_groups=phase).fit(A, y) for A, y in data]
+    values = [f.theta_ for f in fits]
+    return np.std(values, axis=0, ddof=1), np.median([f.repeating_share_ for f in fits], axis=0)
 
 
 def test_the_share_that_repeats_is_what_a_longer_run_does_not_reduce():
