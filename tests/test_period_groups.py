@@ -25,10 +25,11 @@ pytestmark = pytest.mark.usefixtures(
 PERIODS, PHASES = 12, 30  # rows: 12 periods of 30 phases
 
 
-def _draws(n_draws: int, common_sd: float, seed: int = 7, periods: int = PERIODS):
+def _draws(n_draws: int, common_sd, seed: int = 7, periods: int = PERIODS, mask=None):
     """Per draw (A (M, 2, 3), y (M, 2)) with the regressor repeating every period (a
-    periodic excitation), a common error per phase (sd ``common_sd``) and white noise of
-    sd 0.5 (joint 0) and 1.0 (joint 1); theta = (1, -2, 0.5)."""
+    periodic excitation), a common error per phase (sd ``common_sd``, scalar or per joint)
+    and white noise of sd 0.5 (joint 0) and 1.0 (joint 1); theta = (1, -2, 0.5); ``mask``
+    (2, 3): columns left out of a joint's equation (0)."""
     rng = np.random.default_rng(seed)
     phase = np.tile(np.arange(PHASES), periods)
     s = 2 * np.pi * phase / PHASES
@@ -36,6 +37,8 @@ def _draws(n_draws: int, common_sd: float, seed: int = 7, periods: int = PERIODS
     A[:, 0, :] = np.column_stack([np.sin(s), np.cos(2 * s), np.ones_like(s)])
     A[:, 1, :] = np.column_stack([np.cos(s), np.sin(3 * s), np.sign(np.sin(s) + 0.1)])
     A += 0.05 * rng.standard_normal(A.shape)  # the motion varies a little from period to period
+    if mask is not None:
+        A *= np.asarray(mask, dtype=float)
     theta = np.array([1.0, -2.0, 0.5])
     out = []
     for _ in range(n_draws):
@@ -274,19 +277,56 @@ def test_the_groups_counted_are_the_phases_not_the_ungrouped_rows():
 
 
 def test_repeating_share_by_hand():
-    # the constant column alone (tests above: tau^2 = 7 for groups (1, 3), (5, 7)): the
-    # mean's variance from the rows apart is s^2 / N = (20 / 3) / 4 = 5 / 3; the groups add
-    # tau^2 (sum_g n_g^2 - N) / N^2 = 7 (8 - 4) / 16 = 1.75: share 1.75 / (1.75 + 5 / 3)
-    est = LeastSquares(row_groups=np.array([0, 0, 1, 1])).fit(
-        np.ones((4, 1)), np.array([1.0, 3.0, 5.0, 7.0])
+    # the constant column alone, groups (1, 3), (5, 7), (4, 6): means 2, 6, 5, grand mean
+    # 13 / 3; SSB = 2 (49 + 25 + 4) / 9 = 52 / 3, SSW = 6; MSB = 26 / 3, MSW = 2, n0 = 2:
+    # tau^2 = (26 / 3 - 2) / 2 = 10 / 3. The mean's variance: s^2 / N with s^2 = (SSB + SSW)
+    # / 5 = 14 / 3, plus tau^2 (sum n_g^2 - N) / N^2 = (10 / 3) 6 / 36: 7 / 9 + 5 / 9 = 4 / 3.
+    # The common part's whole share: tau^2 sum n_g^2 / N^2 = 10 / 9, over 4 / 3: 5 / 6 (the
+    # white part, (s^2 - tau^2) / N = 2 / 9, the rest)
+    est = LeastSquares(row_groups=np.array([0, 0, 1, 1, 2, 2])).fit(
+        np.ones((6, 1)), np.array([1.0, 3.0, 5.0, 7.0, 4.0, 6.0])
     )
-    assert est.repeating_share_[0] == pytest.approx(1.75 / (1.75 + 5.0 / 3.0))
-    assert est.cov_[0, 0] == pytest.approx(1.75 + 5.0 / 3.0)
+    assert est.repeating_std_per_output_[0] ** 2 == pytest.approx(10.0 / 3.0)
+    assert est.cov_[0, 0] == pytest.approx(4.0 / 3.0)
+    assert est.repeating_share_[0] == pytest.approx(5.0 / 6.0)
     # nothing common: no share
     flat = LeastSquares(row_groups=np.array([0, 0, 1, 1])).fit(
         np.ones((4, 1)), np.array([1.0, -1.0, 1.0, -1.0])
     )
     assert flat.repeating_share_[0] == 0.0
+
+
+def _exact_share(A, phase, common_sd):
+    """The share of each LS parameter's variance that the common part makes, from the
+    model of :func:`_draws` (white sd 0.5 and 1.0, common sd per joint), in numpy."""
+    Hi = np.linalg.inv(np.einsum("nja,njb->ab", A, A))
+    white, common = np.zeros((3, 3)), np.zeros((3, 3))
+    for j, (sd_white, sd_common) in enumerate(zip((0.5, 1.0), common_sd, strict=True)):
+        sums = np.zeros((PHASES, 3))
+        np.add.at(sums, phase, A[:, j, :])
+        white += sd_white**2 * A[:, j, :].T @ A[:, j, :]
+        common += sd_common**2 * sums.T @ sums
+    return np.diag(Hi @ common @ Hi) / np.diag(Hi @ (white + common) @ Hi)
+
+
+def test_repeating_share_is_the_models():
+    # both joints' rows inform every parameter: the median share over the draws is the
+    # model's to a few per cent (without the common part's own rows' term, 1 - 1/12 of it)
+    sd = np.array([0.4, 0.25])
+    phase, _, data = _draws(200, sd, seed=31)
+    shares = [LeastSquares(row_groups=phase).fit(A, y).repeating_share_ for A, y in data]
+    exact = _exact_share(data[0][0], phase, sd)
+    np.testing.assert_allclose(np.median(shares, axis=0), exact, rtol=0.04)
+    # a parameter only joint 0 informs (its common part large) against one only joint 1
+    # informs (small): the shares follow the parameters
+    sd = np.array([0.4, 0.1])
+    phase, _, data = _draws(200, sd, seed=32, mask=[[1, 0, 1], [0, 1, 1]])
+    shares = np.median(
+        [LeastSquares(row_groups=phase).fit(A, y).repeating_share_ for A, y in data], axis=0
+    )
+    exact = _exact_share(data[0][0], phase, sd)
+    assert exact[0] > 0.8 and exact[1] < 0.2
+    assert shares[0] > 0.65 and shares[1] < 0.25, shares
 
 
 def _spread(periods, draws, common_sd, seed):

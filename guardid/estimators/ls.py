@@ -89,8 +89,10 @@ class LeastSquares(Estimator):
     With ``row_groups`` ((N,) labels of the samples ``fit`` is given; module docstring),
     ``cov_`` also holds the groups' common error and ``repeating_std_per_output_`` (n_out,)
     is that common part's std per output (tau_j / w_j, unit of y; 0 where there is none),
-    ``repeating_share_`` (p,) the share of each parameter's variance it makes [0-1]: the
-    part a longer run of the same excitation does not reduce.
+    ``repeating_share_`` (p,) the share of each parameter's variance that common part makes,
+    tau_j^2 H^-1 sum_g s_gj s_gj^T H^-1 over the covariance [0-1]: the part that more
+    periods of the same excitation do not reduce (twice the run leaves the variance at
+    (1 - s) / 2 + s of itself).
     ``update`` ignores the groups.
     """
 
@@ -180,12 +182,13 @@ class LeastSquares(Estimator):
             blocks.append((w * A3[live, j, :], w * raw[live, j], lab))
         tau2 = _common_variances(blocks, self._bread)
         p = A3.shape[2]
-        meat = np.zeros((p, p))
+        meat, common = np.zeros((p, p)), np.zeros((p, p))
         for (rows, _, lab), t2 in zip(blocks, tau2, strict=True):
             if t2 > 0.0:
                 sums = np.zeros((int(lab.max()) + 1, p))
                 np.add.at(sums, lab, rows)
-                meat += t2 * (sums.T @ sums - rows.T @ rows)
+                common += t2 * (sums.T @ sums)  # the whole common part: what a longer run keeps
+                meat += t2 * (sums.T @ sums - rows.T @ rows)  # beyond what sigma^2 counts
         self.repeating_std_per_output_ = np.sqrt(tau2) / np.asarray(self._w, dtype=float)
         self.repeating_share_ = np.zeros(p)
         if np.any(tau2 > 0.0):
@@ -193,7 +196,7 @@ class LeastSquares(Estimator):
             self.cov_ = self.cov_ + 0.5 * (extra + extra.T)
             self._set_std()
             with np.errstate(divide="ignore", invalid="ignore"):
-                share = np.diag(extra) / np.diag(self.cov_)
+                share = np.diag(self._bread @ common @ self._bread) / np.diag(self.cov_)
             self.repeating_share_ = np.clip(np.nan_to_num(share), 0.0, 1.0)
 
     def fit(self, A, y):
