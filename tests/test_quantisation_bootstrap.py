@@ -115,6 +115,11 @@ def test_identify_bootstrap_corrects_the_verdicts_method(gap_guard_captures, tmp
                                rtol=1e-9, atol=1e-12)  # fmt: skip
     assert np.all(np.array(b["std"]) >= np.array(p["std"]))
     assert np.any(np.array(b["std"]) > np.array(p["std"]))
+    # the repeating part's variance is the same; its share of the wider total smaller
+    shares = [np.array(x["repeating_residual"]["variance_share"]) for x in (p, b)]
+    assert np.any(shares[0] > 0.01)
+    np.testing.assert_allclose(shares[1] * np.square(b["std"]), shares[0] * np.square(p["std"]),
+                               rtol=2e-3, atol=1e-4 * np.max(np.square(p["std"])))  # fmt: skip
 
 
 def test_identify_bootstrap_cannot_run_one_line(gap_guard_captures, tmp_path):

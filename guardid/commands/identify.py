@@ -424,7 +424,7 @@ def _repeating_line(result, description) -> str:
                       zip(description.joints, rep["std_per_joint"], strict=True))  # fmt: skip
     share = rep.get("variance_share")
     most = ""
-    if share:
+    if share and max(share) > 0.0:
         k = max(range(len(share)), key=share.__getitem__)
         most = f"; up to {100 * share[k]:.0f} % of a parameter's variance ({result.names[k]})"
     return (

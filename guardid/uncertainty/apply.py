@@ -27,10 +27,16 @@ def apply_bootstrap(result, runs, description, identify_options, options, progre
     except GuardidError as exc:
         return str(exc).removeprefix("replica: ")
     fit = result.results[method]
+    before = np.diag(fit.cov).copy()
     cov = bs.covariance(fit.cov)
     fit.theta, fit.cov = bs.corrected(fit.theta), cov
     fit.std = np.sqrt(np.diag(cov))
     fit.rel_std_pct = 100.0 * fit.std / np.maximum(np.abs(fit.theta), 1e-300)
+    repeating = fit.settings.get("repeating_residual", {})
+    if "variance_share" in repeating:  # the repeating part's variance over the wider total
+        with np.errstate(divide="ignore", invalid="ignore"):
+            share = np.asarray(repeating["variance_share"]) * before / np.diag(cov)
+        repeating["variance_share"] = [round(float(x), 4) for x in np.nan_to_num(share)]
     fit.settings["quantisation_bootstrap"] = {
         "replicas": bs.replicas,
         "bias_removed": [float(x) for x in bs.bias],
