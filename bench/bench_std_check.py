@@ -316,7 +316,9 @@ def report(name: str, s: Set, results, errors, truth, port_options: str) -> list
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sets", default="default60,tracking60",
-                    help=f"comma-separated NAME[:SEEDS], or 'all': {', '.join(SETS)}")  # fmt: skip
+                    help=f"comma-separated NAME[:SEEDS], or 'all': {', '.join(SETS)}; also "
+                         f"{', '.join(EXTRA_SETS)}, or one of {', '.join(_FAMILIES)} followed by "
+                         "a length in s")  # fmt: skip
     ap.add_argument("--seeds", type=int, default=40, help="number of seeds")
     ap.add_argument("--first-seed", type=int, default=5000, help="seeds FIRST..FIRST+N-1")
     ap.add_argument("--jobs", type=int, default=2, help="captures and identifies at once")
