@@ -180,15 +180,16 @@ class LeastSquares(Estimator):
             live = np.any(A3[:, j, :] != 0, axis=1)  # a cut equation's rows carry nothing
             _, lab = np.unique(label[live], return_inverse=True)
             blocks.append((w * A3[live, j, :], w * raw[live, j], lab))
-        tau2 = _common_variances(blocks, self._bread)
+        parts = _block_parts(blocks)  # the groups' sums, once for tau and for the covariance
+        tau2 = _common_variances(blocks, self._bread, parts)
         p = A3.shape[2]
         meat, common = np.zeros((p, p)), np.zeros((p, p))
-        for (rows, _, lab), t2 in zip(blocks, tau2, strict=True):
+        for part, t2 in zip(parts, tau2, strict=True):
             if t2 > 0.0:
-                sums = np.zeros((int(lab.max()) + 1, p))
-                np.add.at(sums, lab, rows)
-                common += t2 * (sums.T @ sums)  # the whole common part: what a longer run keeps
-                meat += t2 * (sums.T @ sums - rows.T @ rows)  # beyond what sigma^2 counts
+                sums, xtx = part[3], part[7]
+                between_rows = sums.T @ sums
+                common += t2 * between_rows  # the whole common part: what a longer run keeps
+                meat += t2 * (between_rows - xtx)  # beyond what sigma^2 counts
         self.repeating_std_per_output_ = np.sqrt(tau2) / np.asarray(self._w, dtype=float)
         self.repeating_share_ = np.zeros(p)
         if np.any(tau2 > 0.0):
@@ -263,18 +264,10 @@ def _anova_sums(e: np.ndarray, label: np.ndarray):
     return ssb, float(e @ e) - float(sums @ means), n
 
 
-def _common_variances(blocks, bread: np.ndarray) -> np.ndarray:
-    """tau_j^2 (n_out,) of the model e_j = c_j[group] + white_j per output, from the
-    between- and within-group sums of squares of the residuals (:func:`_anova_sums`),
-    matched to their expectations with the fit's own projection taken into account
-    (Henderson's method III, moments): the residual r_j = e_j - X_j H^-1 sum_k X_k^T e_k
-    loses the parts of the common errors that the regressor can take up, which a plain
-    ANOVA would miss (tau biased low with few groups). ``blocks``: per output (X_j (N_j, p)
-    weighted rows, r_j (N_j,) weighted residuals, group labels (N_j,) 0..G_j-1);
-    ``bread`` H^-1 (p, p). Clipped at 0; 0 for an output without two groups or without a
-    group of two rows."""
-    n_out = len(blocks)
-    moments, rhs, used = [], [], []
+def _block_parts(blocks) -> list:
+    """Per output of ``blocks`` (see :func:`_common_variances`): None for fewer than two
+    rows, else (between-group SS, within-group SS, rows per group (G,), the groups' sums of
+    rows (G, p), the rows' sum (p,), X^T Q_B X, X^T Q_W X, X^T X)."""
     parts = []
     for X, r, lab in blocks:
         if r.size < 2:
@@ -284,9 +277,26 @@ def _common_variances(blocks, bread: np.ndarray) -> np.ndarray:
         sums = np.zeros((n.size, X.shape[1]))
         np.add.at(sums, lab, X)
         total = X.sum(axis=0)
+        xtx = X.T @ X
         between = sums.T @ (sums / n[:, None]) - np.outer(total, total) / r.size  # X^T Q_B X
-        within = X.T @ X - sums.T @ (sums / n[:, None])  # X^T Q_W X
-        parts.append((ssb, ssw, n, sums, total, between, within, X.T @ X))
+        within = xtx - sums.T @ (sums / n[:, None])  # X^T Q_W X
+        parts.append((ssb, ssw, n, sums, total, between, within, xtx))
+    return parts
+
+
+def _common_variances(blocks, bread: np.ndarray, parts=None) -> np.ndarray:
+    """tau_j^2 (n_out,) of the model e_j = c_j[group] + white_j per output, from the
+    between- and within-group sums of squares of the residuals (:func:`_anova_sums`),
+    matched to their expectations with the fit's own projection taken into account
+    (Henderson's method III, moments): the residual r_j = e_j - X_j H^-1 sum_k X_k^T e_k
+    loses the parts of the common errors that the regressor can take up, which a plain
+    ANOVA would miss (tau biased low with few groups). ``blocks``: per output (X_j (N_j, p)
+    weighted rows, r_j (N_j,) weighted residuals, group labels (N_j,) 0..G_j-1);
+    ``bread`` H^-1 (p, p). Clipped at 0; 0 for an output without two groups or without a
+    group of two rows. ``parts``: :func:`_block_parts` of ``blocks`` when already made."""
+    n_out = len(blocks)
+    moments, rhs, used = [], [], []
+    parts = _block_parts(blocks) if parts is None else parts
     for j, part in enumerate(parts):
         if part is None:
             continue
