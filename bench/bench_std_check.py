@@ -32,7 +32,7 @@ short ones first). Not in "all" (outside the tuned sets): fast120, fast600, fast
 (--base-freq 0.25 --harmonics 5), sines600, sines1200, and coarse60, coarse300, coarse1200
 (the default excitation on bench/robots/guard_coarse.yaml: the guard with an encoder four
 times coarser, 12 counts per motor revolution). Any of default, tracking, slow, schroeder,
-sines, fast, modified, coarse, reseeded (excite --seed 7), small (--margin 0.3) or
+sines, fast, modified, coarse, reseeded (excite --seed 7), small (--margin 0.3 --start 0,12.5) or
 longperiod (--base-freq 0.05) followed by a length in seconds is a set as well
 (modified1200, tracking300, coarse600, reseeded60: lengths and excitations nobody named).
 """
@@ -93,13 +93,13 @@ _FAMILIES: dict[str, Set] = {
     "modified": Set((), 0.0, str(MODIFIED)),
     "coarse": Set((), 0.0, str(COARSE)),
     "reseeded": Set(("--seed", "7"), 0.0),
-    "small": Set(("--margin", "0.3"), 0.0),
+    "small": Set(("--margin", "0.3", "--start", "0,12.5"), 0.0),
     "longperiod": Set(("--base-freq", "0.05"), 0.0),
 }
 """Any of these followed by a capture length in seconds is a set too (e.g. modified1200,
 tracking300, coarse600): the same excitation and robot at a length nobody named. reseeded
-(``excite --seed 7``: another optimised trajectory), small (``--margin 0.3``: 30 % inside
-the joint limits) and longperiod (``--base-freq 0.05``: a 20 s period) are excitations no set
+(``excite --seed 7``: another optimised trajectory), small (``--margin 0.3
+--start 0,12.5``: 30 % inside the joint limits, about the tilt's middle) and longperiod (``--base-freq 0.05``: a 20 s period) are excitations no set
 names."""
 
 
