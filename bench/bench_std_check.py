@@ -32,8 +32,8 @@ short ones first). Not in "all" (outside the tuned sets): fast120, fast600, fast
 (--base-freq 0.25 --harmonics 5), sines600, sines1200, and coarse60, coarse300, coarse1200
 (the default excitation on bench/robots/guard_coarse.yaml: the guard with an encoder four
 times coarser, 12 counts per motor revolution). Any of default, tracking, slow, schroeder,
-sines, fast, modified, coarse, reseeded (excite --seed 7), small (--margin 0.3 --start 0,12.5) or
-longperiod (--base-freq 0.05) followed by a length in seconds is a set as well
+sines, fast, modified, coarse, reseeded (excite --seed 7), small (--margin 0.3 --start
+0,12.5) or longperiod (--base-freq 0.05) followed by a length in seconds is a set as well
 (modified1200, tracking300, coarse600, reseeded60: lengths and excitations nobody named).
 """
 
@@ -98,9 +98,9 @@ _FAMILIES: dict[str, Set] = {
 }
 """Any of these followed by a capture length in seconds is a set too (e.g. modified1200,
 tracking300, coarse600): the same excitation and robot at a length nobody named. reseeded
-(``excite --seed 7``: another optimised trajectory), small (``--margin 0.3
---start 0,12.5``: 30 % inside the joint limits, about the tilt's middle) and longperiod (``--base-freq 0.05``: a 20 s period) are excitations no set
-names."""
+(``excite --seed 7``: another optimised trajectory), small (``--margin 0.3 --start
+0,12.5``: 30 % inside the joint limits, about the tilt's middle) and longperiod
+(``--base-freq 0.05``: a 20 s period) are excitations no set names."""
 
 
 def find_set(name: str) -> Set | None:
