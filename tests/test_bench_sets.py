@@ -35,6 +35,9 @@ def test_named_sets_are_themselves(std_check):
         ("coarse2400", (), 2400.0, "guard_coarse.yaml"),
         ("schroeder45", ("--kind", "schroeder"), 45.0, "guard"),
         ("fast90", ("--base-freq", "0.25", "--harmonics", "5"), 90.0, "guard"),
+        ("reseeded60", ("--seed", "7"), 60.0, "guard"),
+        ("small300", ("--margin", "0.3", "--start", "0,12.5"), 300.0, "guard"),
+        ("longperiod1200", ("--base-freq", "0.05"), 1200.0, "guard"),
     ],
 )
 def test_a_family_at_any_length(std_check, name, excite, seconds, robot):
@@ -43,6 +46,8 @@ def test_a_family_at_any_length(std_check, name, excite, seconds, robot):
     assert Path(s.robot).name == robot
 
 
-@pytest.mark.parametrize("name", ["coarse", "coarse0", "default-60", "nosuch60", "60", ""])
+@pytest.mark.parametrize(
+    "name", ["coarse", "coarse0", "default-60", "nosuch60", "60", "", "small", "reseeded0"]
+)
 def test_not_a_set(std_check, name):
     assert std_check.find_set(name) is None
