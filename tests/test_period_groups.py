@@ -294,6 +294,13 @@ def test_repeating_share_by_hand():
         np.ones((4, 1)), np.array([1.0, -1.0, 1.0, -1.0])
     )
     assert flat.repeating_share_[0] == 0.0
+    # a sample added afterwards: the groups no longer describe the rows; the mean of all
+    # seven is 30 / 7 and its variance the white one, s^2 / 7 with s^2 their sample variance
+    est.update(np.ones((1, 1)), np.array([4.0]))
+    assert not hasattr(est, "repeating_share_") and not hasattr(est, "repeating_std_per_output_")
+    assert est.theta_[0] == pytest.approx(30.0 / 7.0)
+    assert est.cov_[0, 0] == pytest.approx((sum((v - 30.0 / 7.0) ** 2 for v in
+                                                 (1, 3, 5, 7, 4, 6, 4)) / 6.0) / 7.0)  # fmt: skip
 
 
 def _exact_share(A, phase, common_sd):

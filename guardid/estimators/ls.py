@@ -93,7 +93,9 @@ class LeastSquares(Estimator):
     tau_j^2 H^-1 sum_g s_gj s_gj^T H^-1 over the covariance [0-1]: the part that more
     periods of the same excitation do not reduce (twice the run leaves the variance at
     (1 - s) / 2 + s of itself).
-    ``update`` ignores the groups.
+    ``update`` ignores the groups, and drops ``repeating_std_per_output_`` and
+    ``repeating_share_`` (they describe the grouped fit's rows only; ``cov_`` after an
+    update is the white-residual one).
     """
 
     def __init__(self, column_noise: ColumnNoise | None = None, row_groups=None):
@@ -247,6 +249,8 @@ class LeastSquares(Estimator):
         self.n_rows_ += n
         self.n_samples_ += 1
         self.compensated_ = False  # a column noise covers the rows of its fit only
+        for stale in ("repeating_std_per_output_", "repeating_share_"):  # the groups' fit's
+            self.__dict__.pop(stale, None)
         self._finish()
         self._stats()
         # Exact for OLS; for WLS this is the rms of the weighted residual.
