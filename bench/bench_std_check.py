@@ -109,7 +109,7 @@ def find_set(name: str) -> Set | None:
         return {**SETS, **EXTRA_SETS}[name]
     family = name.rstrip("0123456789")
     length = name[len(family) :]
-    if family in _FAMILIES and length.isdigit() and int(length) > 0:
+    if family in _FAMILIES and length.isdigit() and not length.startswith("0"):
         return replace(_FAMILIES[family], duration_s=float(length))
     return None
 

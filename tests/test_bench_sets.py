@@ -47,7 +47,8 @@ def test_a_family_at_any_length(std_check, name, excite, seconds, robot):
 
 
 @pytest.mark.parametrize(
-    "name", ["coarse", "coarse0", "default-60", "nosuch60", "60", "", "small", "reseeded0"]
+    "name",
+    ["coarse", "coarse0", "default-60", "nosuch60", "60", "", "small", "reseeded0", "default060"],
 )
 def test_not_a_set(std_check, name):
     assert std_check.find_set(name) is None
