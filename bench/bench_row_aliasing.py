@@ -6,14 +6,16 @@ prepared runs, the momentum form at its chosen cut-off) three ways, then a weigh
 squares in numpy (weights per joint from the residual with the true parameters; no
 quantisation compensation, no phase groups: the same plain fit for all three):
 
-* ``every k``: the filtered values at every k-th tick (k = 16, identify's rows at 2 Hz);
+* ``every k``: the filtered values at every k-th tick (identify's rows; k its decimation,
+  16 at the default 2 Hz cut-off on a 15 ms tick: rows at 4.17 Hz);
 * ``all``: the filtered values at every tick (k = 1);
 * ``mean of k``: the mean of the k filtered values up to every k-th tick (a moving average
   as the filter's last stage, on both sides: the equation stays exact).
 
 Per base parameter over the seeds: the spread of (estimate - truth) relative to ``every
 k``'s, and over the plain fit's own std (sigma^2 (A^T W A)^-1; far too small for ``all``,
-whose rows share their filtered noise). The truth is the robot YAML the simulator ran.
+whose rows share their filtered noise), both over the seeds with ddof 1. The truth is the
+robot YAML the simulator ran.
 
     nice -n 10 python bench/bench_row_aliasing.py --keep DIR --set coarse1200
         [--first-seed 9100] [--seeds 20]
@@ -34,8 +36,6 @@ from guardid.identify.rows import stacked_rows
 from guardid.identify.runs import load_run
 from guardid.robot import load_robot
 
-K = 16
-
 
 def plain_wls(A, y, theta):
     """(estimate - theta, the fit's std) of WLS on rows A (M, n, p), y (M, n), weights per
@@ -53,8 +53,10 @@ def plain_wls(A, y, theta):
 
 
 def block_means(A, y, k):
-    """Rows every k ticks, each the mean of the k rows up to it; a joint's row is zero
-    unless all k are valid."""
+    """Rows every k ticks from the k-th, each the mean of the k rows up to and including it
+    (identify's row ticks 0, k, 2k, ... less the first); a joint's row is zero unless all k
+    are valid."""
+    A, y = A[1:], y[1:]  # ticks 1 .. k end at tick k
     nb = A.shape[0] // k
     ok = np.any(A != 0, axis=2)[: nb * k].reshape(nb, k, -1).all(axis=1)
     Ab = A[: nb * k].reshape(nb, k, *A.shape[1:]).mean(axis=1) * ok[:, :, None]
@@ -80,19 +82,20 @@ def main() -> None:
         runs, _ = prepared_runs([load_run(f"{a.keep}/{a.set}_{seed}.csv")], desc)
         sig = [run_signals(r, runs) for r in runs]
         hh = runs[0].highest_harmonic_hz
-        every = stacked_rows(sig, desc, ConditioningOptions(decimate=K), highest_harmonic_hz=hh)
+        every = stacked_rows(sig, desc, ConditioningOptions(), highest_harmonic_hz=hh)
+        k = every.cond.decimation
         each = stacked_rows(sig, desc, ConditioningOptions(decimate=1), highest_harmonic_hz=hh)
         for key, (A, y) in (("every k", (every.A, every.y)), ("all", (each.A, each.y)),
-                            ("mean of k", block_means(each.A, each.y, K))):  # fmt: skip
+                            ("mean of k", block_means(each.A, each.y, k))):  # fmt: skip
             e, sd = plain_wls(A, y, theta)
             out[key][0].append(e)
             out[key][1].append(sd)
-    base = np.array(out["every k"][0]).std(axis=0)
-    print(f"{a.set}, seeds {a.first_seed}-{a.first_seed + a.seeds - 1}, k = {K}")
+    base = np.array(out["every k"][0]).std(axis=0, ddof=1)
+    print(f"{a.set}, seeds {a.first_seed}-{a.first_seed + a.seeds - 1}, k = {k}")
     for key, (E, S) in out.items():
         E, S = np.array(E), np.array(S).mean(axis=0)
-        rel = " ".join(f"{n} {v:.2f}" for n, v in zip(names, E.std(0) / base, strict=True))
-        own = " ".join(f"{n} {v:.2f}" for n, v in zip(names, E.std(0) / S, strict=True))
+        rel = " ".join(f"{n} {v:.2f}" for n, v in zip(names, E.std(0, ddof=1) / base, strict=True))
+        own = " ".join(f"{n} {v:.2f}" for n, v in zip(names, E.std(0, ddof=1) / S, strict=True))
         print(f"{key:10s} spread / every k's: {rel}")
         print(f"{'':10s} spread / own std:    {own}")
 
