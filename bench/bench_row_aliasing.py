@@ -36,6 +36,9 @@ from guardid.identify.rows import stacked_rows
 from guardid.identify.runs import load_run
 from guardid.robot import load_robot
 
+NW_WINDOWS = (1, 2, 4)
+"""Newey-West windows for the rows at every tick, in multiples of k [-]."""
+
 
 def plain_wls(A, y, theta):
     """(estimate - theta, the fit's std) of WLS on rows A (M, n, p), y (M, n), weights per
@@ -50,6 +53,23 @@ def plain_wls(A, y, theta):
     res = yw - Aw @ est
     cov = np.linalg.inv(Aw.T @ Aw) * (res @ res) / (len(yw) - len(theta))
     return est - theta, np.sqrt(np.diag(cov))
+
+
+def newey_west_std(A, y, theta, err, window: int):
+    """Std of the plain WLS estimate (``theta`` + ``err``) on rows A (M, n, p), y (M, n)
+    that lie on a time grid (zero rows where a joint's equation is cut), with the scores'
+    autocovariance over ``window`` rows weighted by Bartlett's 1 - lag / (window + 1)."""
+    r0 = y - A @ theta
+    w = np.array([1.0 / np.sqrt(np.mean(r0[A[:, j].any(1), j] ** 2)) for j in range(A.shape[1])])
+    Aw = A * w[None, :, None]
+    r = (y - A @ (theta + err)) * w[None, :] * np.any(A != 0, axis=2)
+    g = np.einsum("mjp,mj->mp", Aw, r)  # score per row
+    bread = np.linalg.inv(np.einsum("mjp,mjq->pq", Aw, Aw))
+    meat = g.T @ g
+    for lag in range(1, window + 1):
+        c = g[lag:].T @ g[:-lag]
+        meat += (1.0 - lag / (window + 1)) * (c + c.T)
+    return np.sqrt(np.diag(bread @ meat @ bread))
 
 
 def block_means(A, y, k):
@@ -78,6 +98,7 @@ def main() -> None:
     names = [model.base.names[i] for i in free_columns(model, desc)]
     theta = np.array([truth[n] for n in names])
     out = {"every k": ([], []), "all": ([], []), "mean of k": ([], [])}
+    out.update({f"all, NW {m}k": ([], []) for m in NW_WINDOWS})
     for seed in range(a.first_seed, a.first_seed + a.seeds):
         runs, _ = prepared_runs([load_run(f"{a.keep}/{a.set}_{seed}.csv")], desc)
         sig = [run_signals(r, runs) for r in runs]
@@ -90,14 +111,19 @@ def main() -> None:
             e, sd = plain_wls(A, y, theta)
             out[key][0].append(e)
             out[key][1].append(sd)
+            if key == "all":
+                for mult in NW_WINDOWS:
+                    nw = newey_west_std(A, y, theta, e, mult * k)
+                    out[f"all, NW {mult}k"][0].append(e)
+                    out[f"all, NW {mult}k"][1].append(nw)
     base = np.array(out["every k"][0]).std(axis=0, ddof=1)
     print(f"{a.set}, seeds {a.first_seed}-{a.first_seed + a.seeds - 1}, k = {k}")
     for key, (E, S) in out.items():
         E, S = np.array(E), np.array(S).mean(axis=0)
         rel = " ".join(f"{n} {v:.2f}" for n, v in zip(names, E.std(0, ddof=1) / base, strict=True))
         own = " ".join(f"{n} {v:.2f}" for n, v in zip(names, E.std(0, ddof=1) / S, strict=True))
-        print(f"{key:10s} spread / every k's: {rel}")
-        print(f"{'':10s} spread / own std:    {own}")
+        print(f"{key:14s} spread / every k's: {rel}")
+        print(f"{'':14s} spread / own std:    {own}")
 
 
 if __name__ == "__main__":
