@@ -18,24 +18,18 @@ fits' std.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 
 import numpy as np
 
 from guardid.identify.pipeline import IdentifyOptions, identify
 from guardid.identify.runs import load_run
+from guardid.identify.segments import run_rows
 from guardid.robot import load_robot
 
 
 def first_seconds(run, seconds: float):
-    """``run`` cut to its first ``seconds`` [s] (every per-row array)."""
-    keep = run.t <= run.t[0] + seconds
-    cut = {}
-    for f in dataclasses.fields(run):
-        v = getattr(run, f.name)
-        if isinstance(v, np.ndarray) and v.shape[:1] == run.t.shape:
-            cut[f.name] = v[keep]
-    return dataclasses.replace(run, **cut)
+    """``run`` cut to its first ``seconds`` [s] (every per-row array; its times increase)."""
+    return run_rows(run, 0, int(np.count_nonzero(run.t <= run.t[0] + seconds)))
 
 
 def wls(run, description):

@@ -159,13 +159,15 @@ def split_run(run, limit_ticks: int, min_rows: int = 10):
         if b - a < min_rows:
             dropped.append((name, int(b - a)))
             continue
-        parts = {k: _rows(getattr(run, k, None), a, b) for k in _PER_RUN}
-        segments.append(replace(run, path=name, source=run.source or run.path, **parts))
+        segments.append(run_rows(run, a, b, path=name, source=run.source or run.path))
     return segments, gaps, dropped
 
 
-def _rows(x, a: int, b: int):
-    return None if x is None else x[a:b]
+def run_rows(run, a: int, b: int, **changes):
+    """``run``'s rows a .. b - 1 (every per-row array), with ``changes`` to its other
+    fields."""
+    parts = {k: None if getattr(run, k, None) is None else getattr(run, k)[a:b] for k in _PER_RUN}
+    return replace(run, **parts, **changes)
 
 
 def split_runs(runs, cutoff_hz: float | None = None, highest_harmonic_hz=None) -> Split:
