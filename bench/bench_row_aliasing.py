@@ -40,11 +40,16 @@ NW_WINDOWS = (1, 2, 4)
 """Newey-West windows for the rows at every tick, in multiples of k [-]."""
 
 
+def joint_weights(A, y, theta) -> np.ndarray:
+    """Per joint 1 / rms of the residual at ``theta`` over its live rows (n,)."""
+    r0 = y - A @ theta
+    return np.array([1.0 / np.sqrt(np.mean(r0[A[:, j].any(1), j] ** 2)) for j in range(A.shape[1])])
+
+
 def plain_wls(A, y, theta):
     """(estimate - theta, the fit's std) of WLS on rows A (M, n, p), y (M, n), weights per
     joint 1 / rms of the residual at ``theta``; all-zero rows left out."""
-    r0 = y - A @ theta
-    w = np.array([1.0 / np.sqrt(np.mean(r0[A[:, j].any(1), j] ** 2)) for j in range(A.shape[1])])
+    w = joint_weights(A, y, theta)
     Aw = (A * w[None, :, None]).reshape(-1, A.shape[2])
     yw = (y * w[None, :]).ravel()
     keep = np.any(Aw != 0, axis=1)
@@ -59,8 +64,7 @@ def newey_west_std(A, y, theta, err, window: int):
     """Std of the plain WLS estimate (``theta`` + ``err``) on rows A (M, n, p), y (M, n)
     that lie on a time grid (zero rows where a joint's equation is cut), with the scores'
     autocovariance over ``window`` rows weighted by Bartlett's 1 - lag / (window + 1)."""
-    r0 = y - A @ theta
-    w = np.array([1.0 / np.sqrt(np.mean(r0[A[:, j].any(1), j] ** 2)) for j in range(A.shape[1])])
+    w = joint_weights(A, y, theta)
     Aw = A * w[None, :, None]
     r = (y - A @ (theta + err)) * w[None, :] * np.any(A != 0, axis=2)
     g = np.einsum("mjp,mj->mp", Aw, r)  # score per row
