@@ -189,6 +189,15 @@ class _MethodOption(click.Option):
         return super().get_help_record(ctx)
 
 
+_EVERY_TICK_HELP = (
+    "Momentum form: a row at every tick instead of one every 1 / (2 x cut-off) s. LS and WLS "
+    "then count the noise that neighbouring rows share (each joint's residual "
+    "autocovariance over 2 / cut-off s). Needs at least 2 x parameters x that window of "
+    "usable rows (about 23 s on the guard). Recorded in params.yaml (conditioning.decimate: "
+    "1); docs/IDENTIFY.md says what it gains and where its std is measured."
+)
+
+
 @click.command()
 @click.argument("log", nargs=-1, required=True, type=click.Path(dir_okay=False, exists=True))
 @click.option("--robot", default=None, help="Shipped robot or YAML path [default: the log's].")
@@ -201,6 +210,7 @@ class _MethodOption(click.Option):
 @click.option(
     "--no-quantisation-compensation", "no_quantisation", is_flag=True, help=_QUANTISATION_HELP,
 )  # fmt: skip
+@click.option("--every-tick", is_flag=True, help=_EVERY_TICK_HELP)
 @click.option("--beta", type=_POSITIVE, default=0.01, show_default=True, help="Hopfield gain beta.")
 @click.option(
     "--lam",
@@ -252,7 +262,8 @@ class _MethodOption(click.Option):
 )
 @_foreign_options
 def identify(
-    log, robot, method, cutoff, equation, no_quantisation, beta, lam, eta, current_units, output,
+    log, robot, method, cutoff, equation, no_quantisation, every_tick, beta, lam, eta,
+    current_units, output,
     plot_path, report_path, parallel_hz, consistent, bootstrap_k, cv, force, **foreign,
 ):  # fmt: skip
     """Identify the robot's base parameters and motor constants from LOG [LOG ...].
@@ -293,8 +304,13 @@ def identify(
     from guardid.identify.methods import methods_for
 
     methods_for(methods)  # an unknown method is an option error, before any log is named
+    if every_tick and (equation == "acceleration" or parallel_hz):
+        raise ConfigError(
+            "--every-tick: rows of the momentum form only (not with "
+            f"{'--equation acceleration' if equation else '--parallel-filter'})"
+        )
     conditioning = ConditioningOptions(cutoff_hz=cutoff, parallel_filter_hz=parallel_hz,
-                                       equation=equation,
+                                       equation=equation, decimate=1 if every_tick else None,
                                        quantisation=False if no_quantisation else None)  # fmt: skip
     options = IdentifyOptions(
         methods=methods, conditioning=conditioning, hopfield=HopfieldSettings(beta=beta),
@@ -317,6 +333,10 @@ def identify(
     from guardid.identify.checks import call_naming_logs
 
     result = call_naming_logs(logs, run_identify, runs, description, options)  # names gaps
+    if every_tick and result.conditioning.equation != "momentum":  # its rows' std would be white
+        raise ConfigError(f"{log}: --every-tick: rows of the momentum form only, and this log's "
+                          f"are in the {result.conditioning.equation} form (see the notes "
+                          "without --every-tick)")  # fmt: skip
     from guardid.identify.prepare import prepared_runs
 
     whole, (runs, _) = runs, prepared_runs(runs, description, options)  # as identify split them

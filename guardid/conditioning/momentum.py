@@ -120,6 +120,15 @@ def decimation(fs_hz: float, cutoff_hz: float) -> int:
     return max(1, int(fs_hz / (2.0 * cutoff_hz)))
 
 
+def correlation_ticks(fs_hz: float, cutoff_hz: float) -> int:
+    """Rows this many ticks apart or closer share their noise [ticks]: 2 / fc, four of
+    :func:`decimation`'s row spacings, over which the causal filter's impulse response
+    (order 2: its envelope at 2 / fc is exp(-2 pi sqrt(2)) = 1.4e-4 of its peak) and the
+    stencils' reach spread one tick's error; the window over which least squares counts the
+    rows' errors as correlated (:class:`~guardid.estimators.LeastSquares`, ``lag_ticks``)."""
+    return 4 * decimation(fs_hz, cutoff_hz)
+
+
 def filter_sos(cutoff_hz: float, fs_hz: float, order: int) -> np.ndarray:
     """The causal Butterworth low-pass (second-order sections)."""
     if not 0.0 < cutoff_hz < 0.5 * fs_hz:

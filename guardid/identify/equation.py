@@ -38,7 +38,9 @@ class FormRows:
     (cut-off, equation form, parallel filter; the quantisation's); ``column_noise``: the
     encoder rounding's noise in the columns (the momentum form) or None; ``keep_runs``:
     the stacked rows keep ``conds`` (the momentum form: what
-    :func:`~guardid.identify.momentum_rows.momentum_rows_of` needs).
+    :func:`~guardid.identify.momentum_rows.momentum_rows_of` needs); ``lag_ticks``: rows
+    this many ticks apart or closer share their noise (the momentum form's causal filter),
+    0 when the rows' errors are taken as independent.
     """
 
     conds: list
@@ -50,6 +52,7 @@ class FormRows:
     last_notes: list[str] = field(default_factory=list)
     column_noise: ColumnNoise | None = None
     keep_runs: bool = False
+    lag_ticks: int = 0
 
 
 def momentum_unsuitable(runs, model, effort_is_torque, options) -> str:

@@ -201,7 +201,12 @@ class WLS(Method):
 
         noise = getattr(rows.rows, "column_noise", None)
         groups = getattr(rows.rows, "period_groups", None)
-        wls = WeightedLeastSquares(column_noise=noise, row_groups=groups).fit(rows.A, rows.y)
+        wls = WeightedLeastSquares(
+            column_noise=noise,
+            row_groups=groups,
+            row_ticks=getattr(rows.rows, "row_ticks", None),
+            lag_ticks=getattr(rows.rows, "lag_ticks", 0),
+        ).fit(rows.A, rows.y)
         return MethodFit.of(wls, settings=repeating_settings(wls, groups))
 
 

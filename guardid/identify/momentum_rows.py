@@ -7,6 +7,9 @@ momentum equation (:func:`guardid.conditioning.momentum.condition_momentum`: one
 filter on both sides, nothing differentiated twice) on their usable rows, the cut-off [Hz]
 (2 x the excitation's highest harmonic, else x the positions' band, at least 2 Hz), and the
 encoder rounding's noise in the columns that LS and WLS remove (:func:`quantisation_noise_of`).
+Rows closer than that default spacing (``options.decimate``, e.g. 1: every tick) share their
+noise: LS and WLS then count it (the residuals' autocovariance over
+:func:`mom.correlation_ticks`).
 """
 
 from __future__ import annotations
@@ -75,8 +78,11 @@ def momentum_rows(runs, description, options, why, model, free, in_current_units
     noise, note = _noise_of_runs(noises)
     used = replace(used, quantisation=noise is not None)
     choice = CutoffChoice(float(cutoff), reason.split(": ", 1)[-1], [float(cutoff)])
+    # rows closer than the default spacing share their noise through the filter
+    close = min(c.decimation for c in conds) < mom.decimation(fs, float(cutoff))
+    lag = mom.correlation_ticks(fs, float(cutoff)) if close else 0
     return FormRows(conds, As, ys, used, choice if options.cutoff_hz is None else None,
-                    [reason], [note], noise, keep_runs=True)  # fmt: skip
+                    [reason], [note], noise, keep_runs=True, lag_ticks=lag)  # fmt: skip
 
 
 def quantisation_noise_of(cond, rest, description, options, model, free, base, gain):

@@ -22,6 +22,7 @@ import numpy as np
 from guardid.conditioning.bandwidth import HARMONIC_FACTOR
 from guardid.conditioning.options import ConditioningOptions
 from guardid.dynamics import build_model
+from guardid.errors import GuardidError
 from guardid.estimators import LeastSquares, d_tau
 from guardid.identify.electrical import MotorEstimate, identify_motor_runs, motor_doubts
 from guardid.identify.equation import free_columns
@@ -196,11 +197,19 @@ def _fit_rows(rows, runs, description, options, torque) -> FitRows:
     model = build_model(description)
     cond, A, y = rows
     free = free_columns(model, description)
+    if rows.row_ticks is not None and len(A) < 2 * len(free) * (rows.lag_ticks + 1):
+        # what the fit takes up of the residuals, about p (L + 1) / N, would pass one half
+        raise GuardidError(
+            f"rows at every tick: {len(A)} usable rows are too few for their std (the fit's "
+            f"{len(free)} parameters over a window of {rows.lag_ticks + 1} ticks need "
+            f"{2 * len(free) * (rows.lag_ticks + 1)}): capture longer or use the default rows"
+        )
     return FitRows(
         A=A, y=y, rows=rows, names=tuple(model.base.names[i] for i in free),
         nominal=model.base.values(model.params)[free],
         dt=float(np.median(np.diff(cond.t[cond.mask]))),
-        ls=LeastSquares(rows.column_noise, rows.period_groups).fit(A, y),
+        ls=LeastSquares(rows.column_noise, rows.period_groups, rows.row_ticks,
+                        rows.lag_ticks).fit(A, y),
         runs=runs, description=description, model=model, free=free, options=options,
         effort_is_torque=torque,
     )  # fmt: skip

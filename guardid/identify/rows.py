@@ -52,7 +52,9 @@ class Rows:
     ``column_noise``: the encoder rounding's noise in the identified columns of ``A`` and
     in ``y`` (the momentum form,
     :func:`~guardid.identify.momentum_rows.quantisation_noise_of`), which LS and WLS
-    remove, else None.
+    remove, else None. ``period_groups``: :func:`period_groups`; ``row_ticks`` (M,): each
+    row's tick (:func:`row_ticks`) and ``lag_ticks``: how near rows share their noise (LS
+    and WLS count it in their std; 0: not counted, ``row_ticks`` None).
     """
 
     cond: object
@@ -65,6 +67,8 @@ class Rows:
     acceleration_rows: Rows | None = None
     column_noise: ColumnNoise | None = None
     period_groups: np.ndarray | None = None
+    row_ticks: np.ndarray | None = None
+    lag_ticks: int = 0
 
     def __iter__(self):  # (cond, A, y), as before
         return iter((self.cond, self.A, self.y))
@@ -138,9 +142,31 @@ def stacked_rows(
         joined.notes.append(f"rows grouped by their phase in the excitation's period "
                             f"({phase_group_count(groups)} groups; LS and WLS count in their "
                             "std an error that repeats every period)")  # fmt: skip
+    ticks = row_ticks(form.conds, form.lag_ticks) if form.lag_ticks > 0 else None
+    if ticks is not None and len(ticks) != len(A):
+        ticks = None  # rows and conditioned samples do not line up
+    if ticks is not None:
+        joined.notes.append(f"rows within {form.lag_ticks} ticks of each other share "
+                            "their noise through the filter (LS and WLS count it)")  # fmt: skip
     return Rows(joined, A, y, form.options, form.choice, _doubts(form.conds, form.choice),
                 form.conds if form.keep_runs else [], column_noise=form.column_noise,
-                period_groups=groups)  # fmt: skip
+                period_groups=groups, row_ticks=ticks,
+                lag_ticks=form.lag_ticks if ticks is not None else 0)  # fmt: skip
+
+
+def row_ticks(conds, lag_ticks: int) -> np.ndarray:
+    """(M,) the tick of each stacked usable row of ``conds`` (one conditioned run each,
+    ticks ``cond.t`` on a grid of its median step), the runs more than ``lag_ticks`` ticks
+    apart so that no two runs' rows count as neighbours."""
+    out, start = [], 0
+    for cond in conds:
+        t = np.asarray(cond.t, dtype=float)
+        dt = float(cond.momentum.dt) if getattr(cond, "momentum", None) is not None else (
+            float(np.median(np.diff(t))) if t.size > 1 else 1.0)  # fmt: skip
+        tick = np.rint((t - t[0]) / dt).astype(np.int64) if t.size else np.zeros(0, np.int64)
+        out.append(tick[cond.mask] + start)
+        start += int(tick[-1]) + int(lag_ticks) + 1 if tick.size else 0
+    return np.concatenate(out)
 
 
 def period_groups(conds, periods_s) -> np.ndarray | None:
