@@ -192,9 +192,10 @@ class _MethodOption(click.Option):
 _EVERY_TICK_HELP = (
     "Momentum form: a row at every tick instead of one every 1 / (2 x cut-off) s. LS and WLS "
     "then count the noise that neighbouring rows share (each joint's residual "
-    "autocovariance over 2 / cut-off s). Needs at least 2 x parameters x that window of "
-    "usable rows (about 23 s on the guard). Recorded in params.yaml (conditioning.decimate: "
-    "1); docs/IDENTIFY.md says what it gains and where its std is measured."
+    "autocovariance over 2 / cut-off s; BLS's std does not). Needs at least 2 x parameters "
+    "x that window of usable rows (about 23 s on the guard). Recorded in params.yaml "
+    "(conditioning.decimate: 1); docs/IDENTIFY.md says what it gains and where its std is "
+    "measured."
 )
 
 
