@@ -199,14 +199,8 @@ class WLS(Method):
     def fit(self, rows):
         from guardid.estimators import WeightedLeastSquares
 
-        noise = getattr(rows.rows, "column_noise", None)
-        groups = getattr(rows.rows, "period_groups", None)
-        wls = WeightedLeastSquares(
-            column_noise=noise,
-            row_groups=groups,
-            row_ticks=getattr(rows.rows, "row_ticks", None),
-            lag_ticks=getattr(rows.rows, "lag_ticks", 0),
-        ).fit(rows.A, rows.y)
+        groups = rows.rows.period_groups
+        wls = WeightedLeastSquares(**rows.rows.error_model()).fit(rows.A, rows.y)
         return MethodFit.of(wls, settings=repeating_settings(wls, groups))
 
 

@@ -208,8 +208,7 @@ def _fit_rows(rows, runs, description, options, torque) -> FitRows:
         A=A, y=y, rows=rows, names=tuple(model.base.names[i] for i in free),
         nominal=model.base.values(model.params)[free],
         dt=float(np.median(np.diff(cond.t[cond.mask]))),
-        ls=LeastSquares(rows.column_noise, rows.period_groups, rows.row_ticks,
-                        rows.lag_ticks).fit(A, y),
+        ls=LeastSquares(**rows.error_model()).fit(A, y),
         runs=runs, description=description, model=model, free=free, options=options,
         effort_is_torque=torque,
     )  # fmt: skip

@@ -73,6 +73,13 @@ class Rows:
     def __iter__(self):  # (cond, A, y), as before
         return iter((self.cond, self.A, self.y))
 
+    def error_model(self) -> dict:
+        """What LS and WLS are told of these rows' errors (the keywords of
+        :class:`~guardid.estimators.LeastSquares`): the columns' rounding noise, the
+        period groups, and the ticks and window of the noise neighbours share."""
+        return {"column_noise": self.column_noise, "row_groups": self.period_groups,
+                "row_ticks": self.row_ticks, "lag_ticks": self.lag_ticks}  # fmt: skip
+
 
 def identification_rows(
     t_s,
