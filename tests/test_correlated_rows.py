@@ -9,6 +9,7 @@ import pytest
 from scipy.signal import lfilter
 
 from guardid.estimators import ColumnNoise, LeastSquares, WeightedLeastSquares
+from guardid.estimators import ls as ls_module
 
 
 def _direct_cov(A3, y2, w, ticks, lag, noise=None):
@@ -48,7 +49,10 @@ def _direct_cov(A3, y2, w, ticks, lag, noise=None):
 
 @pytest.mark.parametrize("weighted", [False, True])
 @pytest.mark.parametrize("compensated", [False, True])
-def test_covariance_is_the_double_sum_over_pairs(weighted, compensated):
+@pytest.mark.parametrize("layout", ["ticks", "every-3rd", "chunked"])
+def test_covariance_is_the_double_sum_over_pairs(weighted, compensated, layout, monkeypatch):
+    """``every-3rd``: rows 3 ticks apart (a window of 16 ticks: pairs at 3, 6, .., 15);
+    ``chunked``: the tick grid in chunks of 7 points (pairs across every chunk's edge)."""
     rng = np.random.default_rng(3)
     N, n, p, lag = 60, 2, 3, 5
     A3 = rng.normal(size=(N, n, p))
@@ -56,6 +60,10 @@ def test_covariance_is_the_double_sum_over_pairs(weighted, compensated):
     A3[20, 1] = 0.0  # one equation cut
     y2 = A3 @ np.array([1.0, -2.0, 0.5]) + rng.normal(size=(N, n))
     ticks = np.cumsum(rng.choice([1, 1, 1, 2, 9], size=N))  # gaps, one beyond the lag
+    if layout == "every-3rd":
+        ticks, lag = 3 * ticks + 1000, 16
+    if layout == "chunked":
+        monkeypatch.setattr(ls_module, "GRID_CHUNK", 7)
     noise = None
     if compensated:  # a small known column noise: the bread is the compensated matrix's
         G = rng.normal(size=(n, p, p))

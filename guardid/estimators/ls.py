@@ -54,6 +54,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import get_lapack_funcs, qr, solve_triangular
+from scipy.signal import lfilter
 
 from ._base import Estimator, as_blocks, as_sample
 
@@ -203,27 +204,23 @@ class LeastSquares(Estimator):
     def _add_correlated(self, A3: np.ndarray, raw: np.ndarray) -> None:
         """``cov_`` from each output's error autocovariance over ``row_ticks`` (module
         docstring)."""
-        ticks = np.asarray(self.row_ticks)
+        ticks = np.rint(np.asarray(self.row_ticks, dtype=float)).astype(np.int64)
         if ticks.shape != raw.shape[:1]:
             raise ValueError(f"row_ticks has shape {ticks.shape}, the rows {raw.shape[:1]}")
-        p = A3.shape[2]
+        p, lag = A3.shape[2], self.lag_ticks
         meat = np.zeros((p, p))
         for j, w in enumerate(self._w):
-            live = np.any(A3[:, j, :] != 0, axis=1)  # a cut equation's rows carry nothing
-            X, e = w * A3[live, j, :], w * raw[live, j]
-            if e.size == 0:
-                continue
-            meat += float(e @ e) / e.size * (X.T @ X)
-            for _, i, k in _lag_pairs(ticks[live], self.lag_ticks):
-                gamma = float(e[i] @ e[k]) / i.size  # the residuals' autocovariance at d
-                c = X[i].T @ X[k]
-                meat += gamma * (c + c.T)
+            live = np.flatnonzero(np.any(A3[:, j, :] != 0, axis=1))  # cut: carry nothing
+            if live.size:
+                meat += w**4 * _lagged_meat(A3[:, j, :], raw[:, j], ticks, live, lag)
         vals, vecs = np.linalg.eigh(0.5 * (meat + meat.T))  # the autocovariances estimated
         meat = (vecs * np.clip(vals, 0.0, None)) @ vecs.T  # lag by lag: no negative variance
         live = np.any(A3 != 0, axis=(1, 2))
         n = int(np.count_nonzero(live))
-        pairs = _lag_pairs(ticks[live], self.lag_ticks)
-        weight = (n + 2.0 * sum(w * i.size for w, i, _ in pairs)) / max(n, 1)
+        grid = _TickGrid(ticks, lag, np.flatnonzero(live))
+        pairs = grid.pair_sums(np.ones(ticks.size))[1]  # (lag' + 1,) pairs at each grid distance
+        bartlett = 1.0 - grid.step * np.arange(pairs.size) / (lag + 1.0)
+        weight = (n + 2.0 * float(bartlett[1:] @ pairs[1:])) / max(n, 1)  # per sample
         dof = n - p * weight  # the fit takes up p directions of each window's error
         self.cov_ = (n / dof if dof > 0 else np.nan) * (self._bread @ meat @ self._bread)
         self.cov_ = 0.5 * (self.cov_ + self.cov_.T)
@@ -322,21 +319,77 @@ class LeastSquares(Estimator):
         return self
 
 
-def _lag_pairs(ticks: np.ndarray, lag: int) -> list:
-    """[(weight, i, k)] for d = 1..``lag``: the Bartlett weight 1 - d / (lag + 1) (the
-    degrees-of-freedom factor's) and the indices (i, k) of every pair of samples with
-    ticks[k] = ticks[i] + d (``ticks`` (N,) distinct, rounded to integers, any order)."""
-    ticks = np.rint(np.asarray(ticks, dtype=float)).astype(np.int64)
-    order = np.argsort(ticks, kind="stable")
-    ordered = ticks[order]
-    pairs = []
-    for d in range(1, int(lag) + 1):
-        at = np.searchsorted(ordered, ordered + d)
-        ok = at < ordered.size
-        ok[ok] = ordered[at[ok]] == ordered[ok] + d
-        if ok.any():
-            pairs.append((1.0 - d / (lag + 1.0), order[ok], order[at[ok]]))
-    return pairs
+GRID_CHUNK = 16384
+"""Grid points per chunk of :class:`_TickGrid` [-]: its arrays stay about 2 MB whatever
+the log's length."""
+
+
+class _TickGrid:
+    """The samples ``ticks[rows]`` (distinct integers, any order; ``rows`` None: all) on the
+    grid of their common step (their greatest common divisor: a row every m-th tick gives
+    m), by chunks of :data:`GRID_CHUNK` points: a pair of samples d ticks apart is then two
+    views of one chunk d / step points apart, whatever lies between them. ``lag`` [ticks]:
+    the largest distance asked for (``self.lag`` grid points)."""
+
+    def __init__(self, ticks, lag: int, rows=None):
+        ticks = np.asarray(ticks, dtype=np.int64)
+        rows = np.arange(ticks.size) if rows is None else np.asarray(rows)
+        order = np.argsort(ticks[rows], kind="stable")
+        self.rows = rows[order]  # the samples in tick order
+        at = ticks[self.rows] - (ticks[self.rows[0]] if rows.size else 0)
+        if rows.size > 1 and np.any(np.diff(at) == 0):
+            raise ValueError("row_ticks: two rows at the same tick")
+        self.step = max(int(np.gcd.reduce(np.diff(at))) if rows.size > 1 else 1, 1)
+        self.pos = at // self.step
+        self.lag = int(lag) // self.step
+
+    def chunks(self, *columns):
+        """Yield (B, [each of ``columns`` (N, ...) (all samples, indexed like ``ticks``) on
+        the chunk's grid of B + lag points, zero where no sample is]) for the chunks that
+        hold a sample."""
+        pos, L = self.pos, self.lag
+        top = int(pos[-1]) + 1 if pos.size else 0
+        for a in range(0, top, GRID_CHUNK):
+            lo, mid, hi = np.searchsorted(pos, [a, a + GRID_CHUNK, a + GRID_CHUNK + L])
+            if mid == lo:
+                continue
+            B = min(GRID_CHUNK, top - a)
+            out = []
+            for c in columns:
+                g = np.zeros((B + L, *np.shape(c)[1:]))
+                g[pos[lo:hi] - a] = c[self.rows[lo:hi]]
+                out.append(g)
+            yield B, out
+
+    def pair_sums(self, e):
+        """(sum over pairs of e_t e_(t+d), number of pairs), each (lag + 1,) for grid
+        distances d = 0..lag (d = 0: each sample with itself); ``e`` (N,) all samples."""
+        L = self.lag
+        sums, count = np.zeros(L + 1), np.zeros(L + 1)
+        for B, (eg, on) in self.chunks(e, np.ones(len(e))):
+            for d in range(L + 1):  # each sample t of the chunk with its partner t + d
+                sums[d] += float(eg[:B] @ eg[d : B + d])
+                count[d] += float(on[:B] @ on[d : B + d])
+        return sums, count
+
+
+def _lagged_meat(X, e, ticks, rows, lag: int) -> np.ndarray:
+    """(p, p) sum over every pair of the samples ``rows`` at most ``lag`` ticks apart of
+    gamma_d x_t x_t'^T, gamma_d the residuals' autocovariance at their distance d (pooled:
+    the sum of e_t e_t' over the pairs at d / their number); ``X`` (N, p), ``e`` (N,),
+    ``ticks`` (N,) distinct integers over all samples."""
+    grid = _TickGrid(ticks, lag, rows)
+    sums, count = grid.pair_sums(e)
+    gamma = np.divide(sums, count, out=np.zeros_like(sums), where=count > 0)
+    ahead = np.concatenate([[0.0], gamma[1:]])  # Z_t = sum_(d >= 1) gamma_d x_(t+d)
+    p = X.shape[1]
+    xx, xz = np.zeros((p, p)), np.zeros((p, p))
+    for B, (Xg,) in grid.chunks(X):
+        # one FIR filter run backwards over the chunk and its lag: not one product per lag
+        Z = lfilter(ahead, [1.0], Xg[::-1], axis=0)[::-1][:B]
+        xx += Xg[:B].T @ Xg[:B]
+        xz += Xg[:B].T @ Z
+    return gamma[0] * xx + xz + xz.T
 
 
 def _anova_sums(e: np.ndarray, label: np.ndarray):
