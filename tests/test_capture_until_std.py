@@ -11,6 +11,7 @@ import sys
 
 import numpy as np
 
+from guardid.conditioning.options import ConditioningOptions
 from guardid.identify import identification_rows
 from guardid.identify.pipeline import identified_names
 from guardid.identify.runs import load_run
@@ -50,10 +51,16 @@ def _capture(tmp_path, traj_text, *args):
 
 
 def _numpy_ls(log):
-    """Independent LS on guardid's identification rows: theta, std (sigma^2 (A^T A)^-1)."""
+    """Independent LS on guardid's identification rows one every 1 / (2 fc) (decimate 0:
+    errors about independent, so the white std holds): theta, std (sigma^2 (A^T A)^-1)."""
     run = load_run(log)
     _, A, y = identification_rows(
-        run.t, run.q, run.current, GUARD, highest_harmonic_hz=run.highest_harmonic_hz
+        run.t,
+        run.q,
+        run.current,
+        GUARD,
+        ConditioningOptions(decimate=0),
+        highest_harmonic_hz=run.highest_harmonic_hz,
     )
     A2, y2 = A.reshape(-1, A.shape[2]), y.reshape(-1)
     theta, rss, *_ = np.linalg.lstsq(A2, y2, rcond=None)

@@ -1,5 +1,7 @@
-"""``identify --every-tick``: momentum rows at every tick, their shared noise counted in the
-std (each joint's residual autocovariance over 2 / cut-off), recorded and reused."""
+"""Momentum rows at every tick (identify's default, and ``--every-tick``), their shared noise
+counted in the std (each joint's residual autocovariance over 2 / cut-off), recorded and
+reused; a short log falls back to rows one every 1 / (2 fc) (``--spaced-rows``), a long one
+keeps a row every m-th tick."""
 
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ from guardid.conditioning import momentum as mom
 from guardid.conditioning.options import ConditioningOptions
 from guardid.dynamics import build_model
 from guardid.estimators import WeightedLeastSquares
+from guardid.identify.pipeline import identified_names
 from guardid.identify.prepare import run_signals
 from guardid.identify.rows import stacked_rows
 from guardid.identify.runs import load_run
@@ -67,12 +70,18 @@ def test_rows_every_tick_and_the_window_from_the_filter(gap_guard_captures):
     run = load_run(gap_guard_captures[1])
     kw = dict(highest_harmonic_hz=run.highest_harmonic_hz, periods_s=[run.excitation_period_s])
     tick = stacked_rows([run_signals(run, [run])], desc, ConditioningOptions(decimate=1), **kw)
-    spaced = stacked_rows([run_signals(run, [run])], desc, ConditioningOptions(), **kw)
+    spaced = stacked_rows([run_signals(run, [run])], desc, ConditioningOptions(decimate=0), **kw)
+    auto = stacked_rows([run_signals(run, [run])], desc, ConditioningOptions(), **kw)
     fs = 1.0 / run.sample_period_s
     fc = tick.options.cutoff_hz
     k = int(fs / (2.0 * fc))  # the default spacing, worked out here
     assert tick.lag_ticks == 4 * k == mom.correlation_ticks(fs, fc)
     assert spaced.lag_ticks == 0 and spaced.row_ticks is None
+    assert (tick.options.decimate, spaced.options.decimate) == (1, k)  # recorded as used
+    # the default on 60 s: every tick, the same rows
+    assert auto.options.decimate == 1 and auto.lag_ticks == tick.lag_ticks
+    np.testing.assert_array_equal(auto.row_ticks, tick.row_ticks)
+    np.testing.assert_array_equal(auto.A, tick.A)
     steps = np.diff(tick.row_ticks)
     assert np.mean(steps == 1) > 0.9  # consecutive ticks but at the cuts
     assert 0.8 * k < len(tick.A) / len(spaced.A) < 1.2 * k
@@ -110,9 +119,107 @@ def test_a_run_too_short_for_the_window_is_refused_in_one_line(
     assert res.exit_code == 2 and not out.exists()
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and "too few for their std" in lines[0] and "Traceback" not in res.stderr
-    # the default rows identify the same 12 s, and validate scores it with every-tick params
-    assert invoke("identify", log, "--method", "wls", "-o", out).exit_code == 0
+    # the default falls back to rows 1 / (2 fc) apart, says why, and records the spacing;
+    # validate scores the 12 s with every-tick params
+    res = invoke("identify", log, "--method", "wls", "-o", out)
+    assert res.exit_code == 0, res.stderr
+    said = [x for x in res.stdout.splitlines() if x.startswith("rows every 16 ticks")]
+    assert len(said) == 1 and "too few for closer rows' std" in said[0] and "1560" in said[0]
+    k = int(1.0 / 0.015 / (2.0 * 2.0))  # 66.7 Hz ticks, cut-off 2 Hz
+    assert yaml.safe_load(out.read_text())["conditioning"]["decimate"] == k == 16
     assert invoke("validate", log, "--params", every_tick_params[1]).exit_code == 0
+
+
+def test_the_default_is_every_tick_on_a_60_s_log(gap_guard_captures, every_tick_params, tmp_path):
+    out = tmp_path / "p.yaml"
+    res = invoke("identify", gap_guard_captures[1], "--method", "wls", "-o", out)
+    assert res.exit_code == 0, res.stderr
+    got, want = (yaml.safe_load(p.read_text()) for p in (out, every_tick_params[1]))
+    assert got["conditioning"]["decimate"] == 1
+    assert got["methods"]["wls"]["values"] == want["methods"]["wls"]["values"]
+    assert got["methods"]["wls"]["std"] == want["methods"]["wls"]["std"]
+
+
+def test_spaced_rows_are_one_every_half_cutoff_period_with_the_white_std(
+    gap_guard_captures, every_tick_params, tmp_path
+):
+    out = tmp_path / "p.yaml"
+    res = invoke("identify", gap_guard_captures[1], "--method", "wls", "--spaced-rows", "-o", out)
+    assert res.exit_code == 0, res.stderr
+    assert "after decimation by 16" in res.stdout
+    data = yaml.safe_load(out.read_text())
+    assert data["conditioning"]["decimate"] == 16
+    tick = yaml.safe_load(every_tick_params[1].read_text())["methods"]["wls"]
+    assert data["methods"]["wls"]["values"] != tick["values"]
+    out = tmp_path / "both.yaml"
+    both = invoke("identify", gap_guard_captures[1], "--every-tick", "--spaced-rows", "-o", out)
+    assert both.exit_code == 2 and "not both" in both.stderr and not out.exists()
+    assert len(both.stderr.strip().splitlines()) == 1
+
+
+def test_row_spacing_of_a_long_log():
+    """Every tick up to MAX_ROWS ticks, then ceil(ticks / MAX_ROWS), at most 1 / (2 fc)."""
+    fs, fc = 1.0 / 0.015, 2.0  # the default spacing int(66.7 / 4) = 16
+    assert mom.MAX_ROWS == 65536
+    from guardid.commands.identify import _EVERY_TICK_HELP
+
+    assert "longer than 65536 ticks (at most 65536 rows" in _EVERY_TICK_HELP  # says the same
+    assert mom.row_spacing(4000, fs, fc) == 1
+    assert mom.row_spacing(65536, fs, fc) == 1
+    assert mom.row_spacing(65537, fs, fc) == 2
+    assert mom.row_spacing(240000, fs, fc) == 4  # 1 h: 240000 / 65536 = 3.66
+    assert mom.row_spacing(960000, fs, fc) == 15  # 4 h: 14.6
+    assert mom.row_spacing(1920000, fs, fc) == 16  # 8 h: 29.3, capped
+
+
+def test_a_long_log_keeps_a_row_every_few_ticks_and_its_std_covers(gap_guard_captures, monkeypatch):
+    """With the budget at 1000 rows a 60 s log (4000 ticks) keeps every 4th tick, each the
+    mean of its 4 ticks; the window is 2 / fc in ticks and the mean's 3, and WLS's std
+    covers the robot YAML's values within 4 std on the three runs; the white std is smaller
+    on every parameter."""
+    monkeypatch.setattr(mom, "MAX_ROWS", 1000)
+    desc, truth = load_robot("guard"), _truth()
+    worst, ratio = [], []
+    for log in gap_guard_captures.values():
+        run = load_run(log)
+        kw = dict(highest_harmonic_hz=run.highest_harmonic_hz, periods_s=[None])
+        rows = stacked_rows([run_signals(run, [run])], desc, ConditioningOptions(), **kw)
+        assert rows.options.decimate == 4 and rows.lag_ticks == 64 + 3  # the mean's 3 more
+        assert rows.cond.momentum.mean_ticks == 4  # the Butterworth, then the 4-tick mean
+        steps = np.diff(rows.row_ticks)
+        assert np.all(steps % 4 == 0) and np.mean(steps == 4) > 0.9
+        said = "rows every 4 ticks, each the mean of its 4 ticks: at most 1000 rows"
+        assert any(x.startswith(said) for x in rows.cond.notes)
+        want = np.array([truth[n] for n in identified_names(desc)])
+        lagged = WeightedLeastSquares(**rows.error_model()).fit(rows.A, rows.y)
+        white = WeightedLeastSquares(column_noise=rows.column_noise).fit(rows.A, rows.y)
+        worst.append(np.max(np.abs(lagged.theta_ - want) / lagged.std_))
+        ratio.append(np.min(lagged.std_ / white.std_))
+    assert max(worst) < 4.0, worst
+    assert min(ratio) > 1.3, ratio  # rows 4 ticks apart still share their noise
+
+
+def test_rows_every_few_ticks_stay_on_the_tick_count_across_lost_ticks(
+    gap_guard_captures, tmp_path, monkeypatch
+):
+    """Two ticks lost at row 1001 and two runs: the rows every 3rd tick stay on the ticks
+    whose count is a multiple of 3 (not every 3rd sample, which the loss would shift), in
+    both runs, and the second run's rows on the same grid (the window, 64 + 2 ticks, is not
+    a multiple of 3), so that their pairs lie on one grid 3 ticks apart."""
+    monkeypatch.setattr(mom, "MAX_ROWS", 2700)  # two logs of about 4000 ticks: every 3rd
+    log = tmp_path / "lost.csv"
+    log.write_text(without_footer(without_rows(gap_guard_captures[1].read_text(), 1001, 2)))
+    runs = [load_run(log), load_run(gap_guard_captures[2])]
+    rows = stacked_rows([run_signals(r, runs) for r in runs], load_robot("guard"),
+                        ConditioningOptions(), highest_harmonic_hz=runs[0].highest_harmonic_hz,
+                        periods_s=[None, None])  # fmt: skip
+    assert rows.options.decimate == 3 and rows.lag_ticks == 66
+    for cond in rows.runs:  # the ticks counted from each run's first, by its time stamps
+        tick = np.rint((cond.t - cond.t[0]) / 0.015).astype(int)
+        assert np.all(tick % 3 == 0)
+    assert rows.runs[0].t[-1] > 1004 * 0.015  # rows after the lost ticks
+    assert np.all(rows.row_ticks % 3 == 0)  # the second run's rows on the same grid
+    assert len(np.unique(rows.row_ticks)) == len(rows.row_ticks) == len(rows.A)
 
 
 @pytest.mark.parametrize("option", [("--equation", "acceleration"), ("--parallel-filter", "1")])

@@ -166,28 +166,34 @@ def test_period_identity_holds_on_the_plant(plant_run):
         assert np.abs(r_wrong[valid[:, j], j]).max() > 1e-3 * peak
 
 
-def test_identification_recovers_the_truth_on_true_signals(plant_run):
+@pytest.mark.parametrize("every", [16, 1, 4], ids=["spaced", "every-tick", "every-4th-mean"])
+def test_identification_recovers_the_truth_on_true_signals(plant_run, every):
     """The plant's true positions and exact period-mean currents in the momentum form,
     scored in units of the std that WLS reports on the same run as measured (quantised
     counts and current, no sensor noise: a small std). With the plant's true tick
     velocities every base parameter comes within 0.05 std (the form is exact up to the
     quadrature); with velocities from the difference stencil of the true positions (and its
     corrections for the torque steps and slopes) within 0.3 std (without the corrections,
-    1.5 std: this test's stiff position loop changes the voltage a lot every tick)."""
+    1.5 std: this test's stiff position loop changes the voltage a lot every tick).
+    ``every``: the rows' spacing in ticks, 16 = 1 / (2 fc) (what the default gives this
+    short run), 1 every tick, 4 every 4th tick, each the mean of its 4 ticks (a long log's
+    rows): the same bounds, in units of the std WLS reports on those rows (their shared
+    noise counted)."""
     from guardid.estimators import WeightedLeastSquares
 
     t, q, qd, i_mean, q_meas, i_meas = plant_run
     desc = load_robot("guard")
     model = build_model(desc)
-    opts = ConditioningOptions(equation="momentum", cutoff_hz=2.0)
+    opts = ConditioningOptions(equation="momentum", cutoff_hz=2.0, decimate=every)
     measured = stacked_rows([(t, q_meas, i_meas)], desc, opts)
-    std = WeightedLeastSquares().fit(measured.A, measured.y).std_
+    std = WeightedLeastSquares(**measured.error_model()).fit(measured.A, measured.y).std_
     free = free_columns(model, desc)
     truth = model.base.values(model.params)[free]
     for velocity, bound in ((qd, 0.05), (None, 0.3)):
         run = (t, q, i_mean) if velocity is None else (t, q, i_mean, velocity)
         true = stacked_rows([run], desc, opts.with_(flat_is_stuck=False))
         assert true.options.equation == "momentum" and true.options.order == mom.DEFAULT_ORDER
+        assert true.options.decimate == measured.options.decimate == every
         theta = WeightedLeastSquares().fit(true.A, true.y).theta_
         z = (theta - truth) / std
         assert np.abs(z).max() < bound, dict(zip([model.base.names[i] for i in free], z,
@@ -320,7 +326,8 @@ def _whole_stretches(Phi, imp, valid, sos, skip):
     return A, y, good
 
 
-def test_chunked_rows_equal_the_whole_log_filtered_at_once(plant_run, monkeypatch, chunk=29):
+@pytest.mark.parametrize(("mean", "chunk"), [(1, 29), (4, 29), (4, 89)])
+def test_chunked_rows_equal_the_whole_log_filtered_at_once(plant_run, monkeypatch, mean, chunk):
     """Issue 30: the period regressor formed by chunks of ``chunk`` ticks (with their
     neighbours) and the filter's state carried across chunk boundaries give the rows of the
     whole log's regressor filtered in one pass per stretch (an independent loop,
@@ -336,6 +343,8 @@ def test_chunked_rows_equal_the_whole_log_filtered_at_once(plant_run, monkeypatc
     keep[1000] = False
     t, q, i_mean = t[keep], q_meas[keep], i_mean[keep]
     kw = {"gain": drive_gain(desc), "cutoff_hz": 2.0, "stiction_threshold": 0.03}
+    if mean > 1:  # rows every 4th tick, each the mean of its 4: one more filter section
+        kw.update(decimate=mean, mean_ticks=mean)
     monkeypatch.setattr(mom, "TICKS_CHUNK", chunk)
     cond, A, y = mom.condition_momentum(t, q, i_mean, model, **kw)
     st = cond.momentum
@@ -346,7 +355,10 @@ def test_chunked_rows_equal_the_whole_log_filtered_at_once(plant_run, monkeypatc
     imp = mom.period_impulse(i_mean, dt, drive_gain(desc), False)
     imp += mom.kink_correction(imp / dt, dt, 3)
     imp -= mom.electrical_damping(desc, drive_gain(desc)) * mom.slope_term(st.v, dt, 3)
-    A_ref, y_ref, good = _whole_stretches(Phi, imp, st.valid, st.sos, st.skip)
+    # the whole filter as second-order sections (the Butterworth, then the mean's FIR):
+    # independent of the mean formed at the kept rows and carried across chunks
+    full = mom.row_filter(2.0, 1.0 / dt, mom.DEFAULT_ORDER, mean)
+    A_ref, y_ref, good = _whole_stretches(Phi, imp, st.valid, full, st.skip)
     np.testing.assert_array_equal(st.row_mask, good[st.rows])
     scale = np.abs(A_ref).max(axis=(0, 1))
     np.testing.assert_allclose(A * dt, A_ref[st.rows], rtol=0, atol=1e-12 * scale.max())
@@ -376,3 +388,19 @@ def test_chunked_identification_equals_the_unchunked_one(plant_run, monkeypatch)
     for (th0, sd0), (th1, sd1) in zip(*fits, strict=True):
         np.testing.assert_allclose(th1, th0, rtol=1e-9, atol=1e-9 * np.abs(th0).max())
         np.testing.assert_allclose(sd1, sd0, rtol=1e-9)
+
+
+@pytest.mark.parametrize("m", [1, 4, 15])
+def test_the_rows_filter_is_the_butterworth_then_the_mean_of_m_ticks(m):
+    """Its impulse response is the causal Butterworth's convolved with m taps of 1 / m
+    (numpy's convolve of scipy's butter, independent of the second-order sections)."""
+    from scipy.signal import butter, lfilter, sosfilt
+
+    fs, fc = 1.0 / 0.015, 2.0
+    x = np.zeros(600)
+    x[0] = 1.0
+    b, a = butter(mom.DEFAULT_ORDER, fc, fs=fs)
+    want = np.convolve(lfilter(b, a, x), np.full(m, 1.0 / m))[: x.size]
+    got = sosfilt(mom.row_filter(fc, fs, mom.DEFAULT_ORDER, m), x)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max())
+    assert got.sum() == pytest.approx(1.0, rel=1e-6)  # unit gain at DC: the equation's scale

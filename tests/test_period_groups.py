@@ -207,8 +207,8 @@ def test_a_capture_log_is_grouped_by_its_excitation_period(gap_guard_captures, t
         assert len(rep["std_per_joint"]) == 2 and all(x >= 0 for x in rep["std_per_joint"])
         share = rep["variance_share"]
         assert len(share) == len(result.names) and all(0.0 <= x <= 1.0 for x in share)
-        # groups: about one per row spacing of the period (rows 1 / (2 x cut-off) apart)
-        spacing = 1.0 / (2.0 * result.conditioning.cutoff_hz)
+        # groups: about one per row spacing of the period (the spacing recorded, in ticks)
+        spacing = result.conditioning.decimate * run.sample_period_s
         assert 0.5 * run.excitation_period_s / spacing <= rep["groups"]
         assert rep["groups"] <= 1.5 * run.excitation_period_s / spacing
 

@@ -48,7 +48,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.signal import butter, sosfilt
+from scipy.signal import butter, sosfilt, tf2sos
 
 from guardid.conditioning.stiction import at_position_limit, default_stiction_threshold
 from guardid.errors import GuardidError
@@ -98,6 +98,7 @@ class MomentumState:
     row_mask: np.ndarray  # (M, n) filtered equation valid at the row
     kink: int | None = None  # the stencil whose kink correction the rows carry
     points: int = 3  # the velocity stencil (or 5 for measured velocities: rows_like)
+    mean_ticks: int = 1  # after ``sos``, the mean of this many ticks (:func:`row_filter`)
 
     @property
     def v(self) -> np.ndarray:
@@ -127,6 +128,32 @@ def correlation_ticks(fs_hz: float, cutoff_hz: float) -> int:
     stencils' reach spread one tick's error; the window over which least squares counts the
     rows' errors as correlated (:class:`~guardid.estimators.LeastSquares`, ``lag_ticks``)."""
     return 4 * decimation(fs_hz, cutoff_hz)
+
+
+MAX_ROWS = 65536
+"""Rows the momentum form keeps at most by default (:func:`row_spacing`) [-]: about 16 min of
+ticks at the guard's 15 ms, and about the rows of a 4 h guard log at the spacing 1 / (2 fc).
+Beyond, a row every few ticks keeps identify's memory and time those of the spaced rows
+(issue 30: a 4 h log under 250 MiB); rows a few ticks apart share most of their noise
+through the filter, so the longer log's rows at every tick would add little."""
+
+
+def row_spacing(ticks: int, fs_hz: float, cutoff_hz: float) -> int:
+    """The momentum form's default row spacing [ticks] for a log of ``ticks`` ticks: every
+    tick up to :data:`MAX_ROWS` ticks, else every m-th (``ticks`` / MAX_ROWS rounded up),
+    never sparser than :func:`decimation`'s 1 / (2 fc)."""
+    return int(min(max(1, -(-int(ticks) // MAX_ROWS)), decimation(fs_hz, cutoff_hz)))
+
+
+def row_filter(cutoff_hz: float, fs_hz: float, order: int, mean_ticks: int = 1) -> np.ndarray:
+    """The rows' filter (second-order sections): :func:`filter_sos`, then for ``mean_ticks``
+    m > 1 the mean of the last m ticks (an FIR with zeros at the multiples of fs / m: what
+    rows m ticks apart would alias onto their band), linear as the Butterworth, so the
+    filtered equation holds as exactly."""
+    sos = filter_sos(cutoff_hz, fs_hz, order)
+    if int(mean_ticks) > 1:
+        sos = np.vstack([sos, tf2sos(np.full(int(mean_ticks), 1.0 / int(mean_ticks)), [1.0])])
+    return sos
 
 
 def filter_sos(cutoff_hz: float, fs_hz: float, order: int) -> np.ndarray:
@@ -441,11 +468,13 @@ def period_chunks(model, q, v, dt: float, kink_points: int | None = None):
         yield a, b, period_regressor(model, q[lo:hi], v[lo:hi], dt, kink_points)[a - lo : b - lo]
 
 
-def filtered_rows(chunks, imp, valid, sos, skip: int, rows, n_cols: int):
+def filtered_rows(chunks, imp, valid, sos, skip: int, rows, n_cols: int, mean_ticks: int = 1):
     """Each joint's valid stretches filtered (at rest at every start, the first ``skip``
     outputs dropped), kept at the ticks ``rows`` (M,) only: (A (M, n, n_cols) filtered
     regressor, y (M, n) filtered impulses (zero without ``imp``), good (M, n) filtered
-    equation valid, transient: valid periods dropped in the filters' starts).
+    equation valid, transient: valid periods dropped in the filters' starts). The filter:
+    ``sos``, then for ``mean_ticks`` m > 1 the mean of the last m outputs (zero before a
+    stretch's start), formed at the kept rows only (:func:`row_filter`'s numbers).
 
     ``chunks`` yields (a, b, Phi (b - a, n, n_cols)) over consecutive ticks
     (:func:`period_chunks`); ``imp`` (N, n) or None; ``valid`` (N, n). The causal filter's
@@ -456,6 +485,8 @@ def filtered_rows(chunks, imp, valid, sos, skip: int, rows, n_cols: int):
     y = np.zeros((len(rows), n))
     good = np.zeros((len(rows), n), dtype=bool)
     zi, done = [None] * n, np.zeros(n, dtype=int)  # carried state, stretch length so far
+    m = int(mean_ticks)
+    tail = [None] * n  # a stretch's last m - 1 outputs, carried into the next chunk
     transient = 0
     out_rows = (A, y, good)
     for a, b, Phi in chunks:
@@ -476,19 +507,33 @@ def filtered_rows(chunks, imp, valid, sos, skip: int, rows, n_cols: int):
                 )
                 if s > 0 or zi[j] is None:  # a new stretch: the filter at rest
                     zi[j], done[j] = np.zeros((len(sos), 2, block.shape[1])), 0
+                    tail[j] = np.zeros((m - 1, block.shape[1]))
                 out, zi[j] = sosfilt(sos, block, axis=0, zi=zi[j])
+                out = np.concatenate([tail[j], out]) if m > 1 else out  # row i + m - 1: tick i
                 transient += int(min(e - s, max(skip - done[j], 0)))
                 at = np.arange(r0, r1)[(rows[r0:r1] >= a + s) & (rows[r0:r1] < a + e)]
                 i = rows[at] - (a + s)
                 ok = done[j] + i >= skip
-                _keep(out_rows, j, at[ok], out[i[ok]], imp is not None)
+                _keep(out_rows, j, at[ok], _window_mean(out, i[ok], m), imp is not None)
+                tail[j] = out[len(out) - (m - 1) :] if m > 1 else None
                 done[j] += e - s
             new_s, new_e = starts[~alone], ends[~alone]
             transient += int(np.minimum(new_e - new_s, skip).sum())
-            _filter_from_rest(sos, Phi, imp, a, j, new_s, new_e, rows, skip, out_rows)
+            _filter_from_rest(sos, Phi, imp, a, j, new_s, new_e, rows, skip, out_rows, m)
             if not valid[b - 1, j]:  # no stretch runs on into the next chunk
                 zi[j] = None
     return A, y, good, transient
+
+
+def _window_mean(out, i, m: int):
+    """The mean of ``out``'s rows i .. i + m - 1 for each i in ``i`` (m = 1: row i), added in
+    order (no running sum: no cancellation over long stretches); ``i`` an index array, or
+    (rows, lanes) along out's first two axes."""
+    rows, rest = (i[0], i[1:]) if isinstance(i, tuple) else (i, ())
+    total = out[(rows, *rest)].copy()
+    for k in range(1, m):
+        total += out[(rows + k, *rest)]
+    return total / m if m > 1 else total
 
 
 def _keep(out_rows, j, at, out, with_imp: bool) -> None:
@@ -502,12 +547,13 @@ def _keep(out_rows, j, at, out, with_imp: bool) -> None:
     good[at, j] = True
 
 
-def _filter_from_rest(sos, Phi, imp, a, j, starts, ends, rows, skip, out_rows) -> None:
+def _filter_from_rest(sos, Phi, imp, a, j, starts, ends, rows, skip, out_rows, m=1) -> None:
     """Joint ``j``'s stretches ``starts`` .. ``ends`` (chunk ticks, from ``a``) of a chunk,
     each filtered from rest with nothing carried out, many in one ``sosfilt`` call: the
     stretches side by side, zero-padded to a common length per power of two of their
     lengths (a causal filter's outputs do not depend on what follows, and each lane's
-    arithmetic is that of its own call); their kept rows past ``skip`` into ``out_rows``."""
+    arithmetic is that of its own call); their kept rows past ``skip`` into ``out_rows``,
+    each the mean of its last ``m`` outputs (:func:`filtered_rows`)."""
     if not len(starts):
         return
     lens = ends - starts
@@ -525,13 +571,15 @@ def _filter_from_rest(sos, Phi, imp, a, j, starts, ends, rows, skip, out_rows) -
                 X[: e - s, lane, 0] = imp[a + s : a + e, j]
                 X[: e - s, lane, 1:] = Phi[s:e, j, :]
         out = sosfilt(sos, X, axis=0)
+        if m > 1:  # each lane from rest: zeros before its start
+            out = np.concatenate([np.zeros((m - 1, *out.shape[1:])), out])
         count = hi[sel] - lo[sel]
         first = np.repeat(lo[sel] - np.cumsum(count) + count, count)
         at = first + np.arange(int(count.sum()))  # the kept rows of every lane, in order
         lane = np.repeat(np.arange(len(sel)), count)
         i = rows[at] - (a + starts[sel][lane])
         ok = i >= skip
-        _keep(out_rows, j, at[ok], out[i[ok], lane[ok]], imp is not None)
+        _keep(out_rows, j, at[ok], _window_mean(out, (i[ok], lane[ok]), m), imp is not None)
 
 
 def rows_like(state: MomentumState, model, q) -> np.ndarray:
@@ -547,7 +595,7 @@ def regressor_rows(state: MomentumState, model) -> np.ndarray:
     parameter set's model scored on the same rows) [torque units]."""
     chunks = period_chunks(model, state.q, state.v, state.dt, state.kink)
     A, _, _, _ = filtered_rows(chunks, None, state.valid, state.sos, state.skip, state.rows,
-                               model.base.B.shape[1])  # fmt: skip
+                               model.base.B.shape[1], state.mean_ticks)  # fmt: skip
     return A * state.row_mask[:, :, None] / state.dt
 
 
@@ -555,7 +603,7 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
                        decimate: int | None = None, effort_is_torque: bool = False,
                        stiction_threshold=None, flat_is_stuck: bool = False,
                        position_limits=None, points: int | None = None,
-                       velocity=None):  # fmt: skip
+                       velocity=None, mean_ticks: int = 1):  # fmt: skip
     """One run in the momentum form: (Conditioned, Phi (M, n, b) filtered base regressor of
     all base columns [torque units], y (M, n) filtered drive torque) on every ``decimate``-th
     tick (default about 1 / (2 fc) apart); the usable rows are ``cond.mask``, each joint's
@@ -570,7 +618,10 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
     ``position_limits`` (n, 2) or None.
     ``velocity`` (N, n) [unit/s]: measured joint velocities, used instead of the difference
     stencil (``points``: 3, or 5; default 3 with its corrections for a period-mean current,
-    5 for torque samples, whose motion is smooth).
+    5 for torque samples, whose motion is smooth). ``mean_ticks`` > 1: the filter is
+    followed by the mean of that many consecutive ticks (:func:`row_filter`), both sides
+    alike, so that rows ``decimate`` ticks apart do not fold the noise above their Nyquist
+    rate into the regressor's band.
     """
     from guardid.conditioning.pipeline import Conditioned
 
@@ -611,24 +662,28 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
     cut = ~period_validity(len(t), broken, span, np.zeros_like(bad))  # ends, gaps
     cut_slow = ~period_validity(len(t), broken, span, slow) & ~cut
     cut_stop = ~valid & ~cut & ~cut_slow
-    sos = filter_sos(cutoff_hz, fs, order)
-    skip = transient_samples(sos)
+    sos = filter_sos(cutoff_hz, fs, order)  # then the mean (filtered_rows, at the rows)
+    skip = transient_samples(row_filter(cutoff_hz, fs, order, mean_ticks))
     k = decimation(fs, cutoff_hz) if decimate is None else int(decimate)
     imp = period_impulse(effort, dt, gain, effort_is_torque)
     if kink:
         imp = imp + kink_correction(imp / dt, dt, points)
         imp = imp - electrical_damping(model.description, gain) * slope_term(v, dt, points)
     rows = np.arange(0, len(t), k)
+    if mean_ticks > 1:  # on the tick count, not the samples: a lost tick does not shift them
+        tick = np.rint((t - t[0]) / dt).astype(np.int64)
+        rows = np.flatnonzero(tick % k == 0)
     chunks = period_chunks(model, q, v, dt, kink)  # only the kept rows' filtered values stay
-    A, y, jm, transient = filtered_rows(chunks, imp, valid, sos, skip, rows, model.base.B.shape[1])
-    A = A * jm[:, :, None] / dt
+    A, y, jm, transient = filtered_rows(chunks, imp, valid, sos, skip, rows, model.base.B.shape[1],
+                                        mean_ticks)  # fmt: skip
+    A *= jm[:, :, None] / dt  # in place: at every tick A is the run's largest array
     y = y * jm / dt
     mask = np.any(jm, axis=1)
     qdd = np.zeros((len(rows), n_j))  # central difference of v, at the kept rows only
     inner = (rows > 0) & (rows < len(t) - 1)
     qdd[inner] = (v[rows[inner] + 1] - v[rows[inner] - 1]) / (2.0 * dt)
     state = MomentumState(q, None if velocity is None else v, dt, valid, sos, skip, rows, jm,
-                          kink, points if velocity is None else 5)  # fmt: skip
+                          kink, points if velocity is None else 5, int(mean_ticks))  # fmt: skip
     share = 100.0 * valid.sum(0) / max(len(t), 1)
     notes = [
         f"cut-off {cutoff_hz:.3g} Hz",
@@ -744,7 +799,7 @@ def quantisation_noise(state: MomentumState, model, resolution, damping, *,
             if state.kink:
                 d_imp = -damping * slope_term(v_e - v_w, state.dt, state.kink)
             dA, dy, good, _ = filtered_rows([(0, width, d_phi)], d_imp, valid_w, state.sos,
-                                            state.skip, rows_w, n_b)  # fmt: skip
+                                            state.skip, rows_w, n_b, state.mean_ticks)  # fmt: skip
             good &= mask_w
             dA = dA * good[:, :, None] / state.dt
             dy = dy * good / state.dt

@@ -22,7 +22,13 @@ class ConditioningOptions:
     cutoff_hz : zero-phase Butterworth cut-off on positions and efforts [Hz]; None = chosen
         from the data (cross-validated among candidates).
     decimate : keep every k-th conditioned sample (with a parallel filter: every k-th
-        sample after it); None = new Nyquist >= about the cut-off (the parallel filter's).
+        sample after it); None = in the momentum form every tick
+        (:func:`guardid.conditioning.momentum.row_spacing`: every m-th beyond
+        :data:`~guardid.conditioning.momentum.MAX_ROWS` ticks; a log with too few usable
+        ticks for closer rows' std gets 0's spacing), in the acceleration form new Nyquist
+        >= about the cut-off (the parallel filter's); 0 = about 1 / (2 cut-off) in either
+        form (rows whose errors are about independent). A params file records the spacing
+        used.
     stiction_threshold : rows with some |qd_j| below it are dropped [rad/s or m/s]; None =
         5 % of the peak speed for sign friction, 0 (keep every row) for smooth friction models.
     stiction_guard_s : also drop rows within this time of such a sample [s]; None = the span

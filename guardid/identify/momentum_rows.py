@@ -56,33 +56,69 @@ def momentum_rows(runs, description, options, why, model, free, in_current_units
     if thr is None:  # smooth friction holds through zero velocity
         thr = np.where(smooth_friction_joints(description), 0.0, np.nan)
     flat = (not effort_is_torque) if options.flat_is_stuck is None else options.flat_is_stuck
+    spaced = mom.decimation(fs, float(cutoff))  # rows about independent
+    lag = mom.correlation_ticks(fs, float(cutoff))
+    spacing, ticks = options.decimate, sum(len(r[0]) for r in runs)
+    if spacing is None:
+        spacing = mom.row_spacing(ticks, fs, float(cutoff))
+    elif spacing == 0:
+        spacing = spaced
     fixed = [i for i in range(len(model.base.names)) if i not in free]
     base = model.base.values(model.params)
-    conds, As, ys, noises = [], [], [], []
-    for run in runs:
-        t, q, effort, *rest = run
-        cond, A_all, y = mom.condition_momentum(
-            t, q, effort, model, gain=gain, cutoff_hz=cutoff, order=used.order,
-            decimate=options.decimate, effort_is_torque=effort_is_torque, stiction_threshold=thr,
-            flat_is_stuck=flat, position_limits=limits, velocity=rest[0] if rest else None,
-        )  # fmt: skip
-        if fixed and not in_current_units:
-            y = y - A_all[:, :, fixed] @ base[fixed]
-        m = cond.mask
-        noises.append(quantisation_noise_of(cond, rest, description, options, model, free,
-                                            base if fixed and not in_current_units else None,
-                                            gain))  # fmt: skip
-        conds.append(cond)
-        As.append(A_all[m][:, :, free])
-        ys.append(y[m])
+
+    def mean_ticks(spacing):
+        """Rows between every tick and the spaced ones: the mean of their spacing's ticks."""
+        return spacing if 1 < spacing < spaced else 1
+
+    def rows_every(spacing):
+        """(conds, As, ys, noises): every run's usable rows, one every ``spacing`` ticks."""
+        conds, As, ys, noises = [], [], [], []
+        for run in runs:
+            t, q, effort, *rest = run
+            cond, A_all, y = mom.condition_momentum(
+                t, q, effort, model, gain=gain, cutoff_hz=cutoff, order=used.order,
+                decimate=spacing, effort_is_torque=effort_is_torque, stiction_threshold=thr,
+                flat_is_stuck=flat, position_limits=limits,
+                velocity=rest[0] if rest else None, mean_ticks=mean_ticks(spacing),
+            )  # fmt: skip
+            if fixed and not in_current_units:
+                y = y - A_all[:, :, fixed] @ base[fixed]
+            m = cond.mask
+            noises.append(quantisation_noise_of(cond, rest, description, options, model, free,
+                                                base if fixed and not in_current_units else None,
+                                                gain))  # fmt: skip
+            conds.append(cond)
+            # one copy of the kept rows' identified columns; A_all freed before the next run
+            As.append(A_all[np.ix_(np.flatnonzero(m), np.arange(A_all.shape[1]), free)])
+            ys.append(y[m])
+            del A_all
+        return conds, As, ys, noises
+
+    conds, As, ys, noises = rows_every(spacing)
+    spacing_note = []
+    if options.decimate is None and 1 < spacing < spaced:
+        spacing_note = [f"rows every {spacing} ticks, each the mean of its {spacing} ticks: at "
+                        f"most {mom.MAX_ROWS} rows of a log of {ticks} ticks (identify's "
+                        "memory; docs/IDENTIFY.md)"]  # fmt: skip
+    need = 2 * len(free) * (lag + 1)  # usable ticks for the std of rows closer than spaced
+    usable = spacing * sum(len(a) for a in As)
+    if options.decimate is None and spacing < spaced and usable < need:
+        spacing_note = [f"rows every {spaced} ticks (1 / (2 x cut-off)): {usable} usable "
+                        f"ticks are too few for closer rows' std ({len(free)} parameters "
+                        f"over a window of {lag + 1} ticks need {need}; "
+                        "docs/IDENTIFY.md)"]  # fmt: skip
+        spacing = spaced
+        conds, As, ys, noises = rows_every(spacing)
     noise, note = _noise_of_runs(noises)
     used = replace(used, quantisation=noise is not None)
     choice = CutoffChoice(float(cutoff), reason.split(": ", 1)[-1], [float(cutoff)])
-    # rows closer than the default spacing share their noise through the filter
-    close = min(c.decimation for c in conds) < mom.decimation(fs, float(cutoff))
-    lag = mom.correlation_ticks(fs, float(cutoff)) if close else 0
+    used = replace(used, decimate=int(spacing))  # resolved: validate reuses it
+    # rows closer than the default spacing share their noise through the filter (and the
+    # mean over the spacing's ticks, which widens its impulse response)
+    lag = lag + mean_ticks(spacing) - 1 if spacing < spaced else 0
     return FormRows(conds, As, ys, used, choice if options.cutoff_hz is None else None,
-                    [reason], [note], noise, keep_runs=True, lag_ticks=lag)  # fmt: skip
+                    [reason], [note, *spacing_note], noise, keep_runs=True,
+                    lag_ticks=lag)  # fmt: skip
 
 
 def quantisation_noise_of(cond, rest, description, options, model, free, base, gain):

@@ -197,12 +197,14 @@ def _fit_rows(rows, runs, description, options, torque) -> FitRows:
     model = build_model(description)
     cond, A, y = rows
     free = free_columns(model, description)
-    if rows.row_ticks is not None and len(A) < 2 * len(free) * (rows.lag_ticks + 1):
-        # what the fit takes up of the residuals, about p (L + 1) / N, would pass one half
+    spacing = max(int(cond.decimation), 1)
+    if rows.row_ticks is not None and spacing * len(A) < 2 * len(free) * (rows.lag_ticks + 1):
+        # what the fit takes up of the residuals, about p (L + 1) / (spacing N), passes 1/2
         raise GuardidError(
-            f"rows at every tick: {len(A)} usable rows are too few for their std (the fit's "
-            f"{len(free)} parameters over a window of {rows.lag_ticks + 1} ticks need "
-            f"{2 * len(free) * (rows.lag_ticks + 1)}): capture longer or use the default rows"
+            f"rows every {spacing} ticks: {spacing * len(A)} usable ticks are too few for "
+            f"their std (the fit's {len(free)} parameters over a window of "
+            f"{rows.lag_ticks + 1} ticks need {2 * len(free) * (rows.lag_ticks + 1)}): "
+            "capture longer or leave the rows' spacing to identify"
         )
     return FitRows(
         A=A, y=y, rows=rows, names=tuple(model.base.names[i] for i in free),

@@ -135,6 +135,8 @@ def stacked_rows(
     model = build_model(description)
     free = free_columns(model, description)
     options, why = resolve_equation(options, runs, model, effort_is_torque)
+    if options.equation == "acceleration" and options.decimate == 0:
+        options = replace(options, decimate=None)  # its default spacing is 1 / (2 fc)
     form_rows = momentum_rows if options.equation == "momentum" else acceleration_rows
     form = form_rows(runs, description, options, why, model, free, in_current_units,
                      effort_is_torque, highest_harmonic_hz)  # fmt: skip
@@ -150,8 +152,8 @@ def stacked_rows(
                             f"({phase_group_count(groups)} groups; LS and WLS count in their "
                             "std an error that repeats every period)")  # fmt: skip
     ticks = row_ticks(form.conds, form.lag_ticks) if form.lag_ticks > 0 else None
-    if ticks is not None and len(ticks) != len(A):
-        ticks = None  # rows and conditioned samples do not line up
+    if ticks is not None and (len(ticks) != len(A) or np.unique(ticks).size != ticks.size):
+        ticks = None  # rows and conditioned samples do not line up, or two share a tick
     if ticks is not None:
         joined.notes.append(f"rows within {form.lag_ticks} ticks of each other share "
                             "their noise through the filter (LS and WLS count it)")  # fmt: skip
@@ -173,6 +175,9 @@ def row_ticks(conds, lag_ticks: int) -> np.ndarray:
         tick = np.rint((t - t[0]) / dt).astype(np.int64) if t.size else np.zeros(0, np.int64)
         out.append(tick[cond.mask] + start)
         start += int(tick[-1]) + int(lag_ticks) + 1 if tick.size else 0
+        step = max(int(getattr(cond, "decimation", 1)), 1)
+        start = -(-start // step) * step  # a whole number of row spacings: rows every m-th
+        # tick of every run lie on one grid of step m (the covariance's sums)
     return np.concatenate(out)
 
 
@@ -212,7 +217,7 @@ def phase_group_count(groups) -> int:
 
 def _stacked(As, ys, free):
     """The runs' rows stacked; one-line error when too few for the parameters."""
-    A, y = np.concatenate(As), np.concatenate(ys)
+    A, y = (As[0], ys[0]) if len(As) == 1 else (np.concatenate(As), np.concatenate(ys))
     if len(A) <= len(free):
         raise GuardidError(
             f"only {len(A)} usable rows after conditioning (need more than {len(free)}): "
@@ -281,7 +286,8 @@ def _join(conds):
 
 def rows_summary(cond) -> str:
     """'rows: M of N conditioned samples used; dropped: ...' for the report, then the
-    parallel filter's notes (how it was chosen, the decimation after it), one a line."""
+    parallel filter's notes (how it was chosen, the decimation after it) or the momentum
+    form's row spacing's (why not every tick), one a line."""
     n, used = len(cond.mask), int(cond.mask.sum())
     why = ", ".join(f"{v} {k}" for k, v in cond.dropped.items() if v)
     dec = f" (after decimation by {cond.decimation})" if cond.decimation > 1 else ""
@@ -289,9 +295,11 @@ def rows_summary(cond) -> str:
     jm = getattr(cond, "joint_mask", None)
     if jm is not None:  # the momentum form: a joint's rows are cut on their own
         zeroed = int((~jm[cond.mask]).sum())
+        spacing = [note for note in cond.notes if note.startswith("rows every")]
         return (f"rows: {used} of {n} conditioned samples{dec} used, {zeroed} joint rows of "
                 f"them zeroed (that joint's equation cut)"
-                + (f"; joint rows cut: {why}" if why else ""))  # fmt: skip
+                + (f"; joint rows cut: {why}" if why else "")
+                + "".join("\n" + note for note in spacing))  # fmt: skip
     return (
         f"rows: {used} of {n} conditioned samples{dec} used"
         + (f"; dropped {why}" if why else "")
