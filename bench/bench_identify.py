@@ -184,12 +184,15 @@ def floor(path: str) -> dict:
     5 % of the joint's peak speed, lost ticks and the log's ends cut with a margin of 5
     ticks; the same causal Butterworth (order 2, cut-off 2 x the highest harmonic, at least
     2 Hz: guardid's rule) over the impulses and every column (``sosfilt``, one pass over the
-    whole log, the cut periods zeroed); every 16th period kept (guardid's decimation at 2
-    Hz) where no cut lies within the last 20 ticks (guardid's transient); least squares over both
-    joints' rows (``lstsq``), then WLS weighted by each joint's LS residual std. Not done
-    (guardid does): the kink and slope corrections of the stencil, the exact friction
-    integrals, restarting the filter after each cut, the motor equations, the checks, the
-    report; and the batch RLS / Hopfield fits and the tracker's replay of the default
+    whole log, the cut periods zeroed); every m-th period kept (guardid's default
+    spacing: every tick up to 65536 ticks, else ticks / 65536 rounded up, at most 16, its
+    decimation at 2 Hz) where no cut lies within the last 20 ticks (guardid's transient);
+    least squares over both joints' rows (``lstsq``), then WLS weighted by each joint's LS
+    residual std. Not done (guardid does): the kink and slope corrections of the stencil,
+    the exact friction integrals, restarting the filter after each cut, the motor
+    equations, the checks, the report, the std (the rows' shared noise counted), the mean
+    of each row's m ticks on a long log (rows on the tick count); and the
+    batch RLS / Hopfield fits and the tracker's replay of the default
     methods.
     """
     import numpy as np
@@ -239,7 +242,8 @@ def floor(path: str) -> dict:
     harmonic = 0.5  # the capture's excitation (its header: base_freq 0.1 Hz, 5 harmonics)
     sos = butter(2, max(2.0 * harmonic, 2.0), fs=1.0 / dt, output="sos")
     memory = 20  # guardid's transient_samples at 2 Hz: outputs dropped after a cut
-    rows = np.arange(memory, n_t, 16)
+    step = min(max(1, -(-n_t // 65536)), 16)  # guardid's default: at most 65536 rows
+    rows = np.arange(memory, n_t, step)
     cn = np.concatenate([np.zeros((1, n), int), np.cumsum(near, axis=0)])
     ok = cn[rows + 1] - cn[rows + 1 - memory] == 0  # (M, n): no cut in the filter's memory
     A, y = [], []
