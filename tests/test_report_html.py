@@ -43,8 +43,14 @@ def _cli(*args, cwd):
     )
 
 
-def test_residual_spectrum_finds_a_sinusoid_on_uneven_rows():
-    # rows: a masked, decimated subset of a 15 ms grid, as identification leaves them
+@pytest.mark.parametrize("cells", [None, 7 * 1200], ids=["one-call", "blocks-of-7"])
+def test_residual_spectrum_finds_a_sinusoid_on_uneven_rows(monkeypatch, cells):
+    # rows: a masked, decimated subset of a 15 ms grid, as identification leaves them;
+    # "blocks-of-7": the frequencies in blocks of about 7 (scipy's arrays kept small)
+    import guardid.report.html as html
+
+    if cells is not None:
+        monkeypatch.setattr(html, "SPECTRUM_CELLS", cells)
     rng = np.random.default_rng(3)
     t = np.arange(0, 60, 0.015)
     t = t[rng.random(len(t)) < 0.3]
@@ -55,6 +61,11 @@ def test_residual_spectrum_finds_a_sinusoid_on_uneven_rows():
     assert abs(f[k] - f0) < 0.02
     assert a[k, 0] == pytest.approx(amp, rel=0.1)
     assert np.max(a[:, 1]) < 0.1 * amp  # the noise column has no such line
+    from scipy.signal import lombscargle  # every frequency in one call, by hand
+
+    x = r[:, 0] - r[:, 0].mean()
+    want = np.sqrt(4.0 * lombscargle(t, x, 2 * np.pi * f) / len(t))
+    np.testing.assert_allclose(a[:, 0], want, rtol=1e-9, atol=1e-12)
 
 
 def _result(theta, std, nominal=(1.0, 2.0, 0.5)):

@@ -135,6 +135,12 @@ def effort_figure(t_rows, y, pred, joint_names, effort_units, title: str) -> str
     return _svg(fig)
 
 
+SPECTRUM_CELLS = 1 << 21
+"""Rows x frequencies per call of scipy's Lomb-Scargle in :func:`residual_spectrum` [-]:
+its temporaries stay some tens of MB whatever the rows (a 20 min log at every tick: 0.6 GB
+at once)."""
+
+
 def residual_spectrum(t_rows, residual, n_freq: int = 256):
     """(f [Hz] (F,), amplitude (F, n)) of the residual on possibly uneven row times.
 
@@ -152,9 +158,12 @@ def residual_spectrum(t_rows, residual, n_freq: int = 256):
     f_lo = 1.0 / span if span > 0 else 0.1
     f = np.linspace(f_lo, 0.5 / dt, n_freq)
     amp = np.empty((len(f), r.shape[1]))
+    block = max(1, SPECTRUM_CELLS // len(t))  # scipy forms (rows, frequencies) arrays
     for j in range(r.shape[1]):
-        power = lombscargle(t, r[:, j] - r[:, j].mean(), 2 * np.pi * f)
-        amp[:, j] = np.sqrt(4.0 * power / len(t))
+        x = r[:, j] - r[:, j].mean()
+        for a in range(0, len(f), block):
+            power = lombscargle(t, x, 2 * np.pi * f[a : a + block])
+            amp[a : a + block, j] = np.sqrt(4.0 * power / len(t))
     return f, amp
 
 
