@@ -184,3 +184,23 @@ def test_info_without_the_needed_capabilities_is_refused():
     check_info({**info, "capabilities": 0b01111}, GUARD, "sim://guard")  # all four: fine
     with pytest.raises(ConfigError, match="lacks setpoint_buffer, watchdog"):
         check_info({**info, "capabilities": 0b00011}, GUARD, "sim://guard")
+
+
+def test_a_sums_of_sines_capture_without_duration_runs_one_period(tmp_path):
+    """No --duration: one period of the trajectory, 10 s for gentle_trajectory's 0.2 and 0.3
+    Hz (worked out by hand: their common period 1 / 0.1 Hz), written in the log's header as
+    a plain number (numpy's float64 made the header's YAML fail with a traceback)."""
+    from guardid.excitation.sines import common_period
+    from guardid.log import read_log
+
+    assert type(common_period([0.2, 0.3])) is float and common_period([0.2, 0.3]) == pytest.approx(
+        10.0
+    )
+    traj = gentle_trajectory(tmp_path / "t.yaml")
+    log = tmp_path / "run.csv"
+    res = CliRunner().invoke(main, ["capture", "--trajectory", str(traj), "--quiet", "-o",
+                                    str(log)])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    data = read_log(log)
+    assert data.header["duration_s"] == pytest.approx(10.0)
+    assert len(data.columns["tick"]) == pytest.approx(10.0 / 0.015, abs=2)

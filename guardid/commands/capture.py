@@ -276,7 +276,7 @@ def _capture(
             "firmware": {k: (list(v) if isinstance(v, tuple) else v) for k, v in info.items()},
             "sample_period_s": description.sample_period,
             "trajectory": trajectory.to_dict(),
-            "duration_s": duration,
+            "duration_s": float(duration),
             "feedforward": None if feedforward is None else feedforward.label,
             "start_time": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         }

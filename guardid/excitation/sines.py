@@ -200,7 +200,7 @@ def common_period(freqs, max_ratio_denominator: int = 1000) -> float:
     # all f = f_min * p_i / q_i; the fundamental is f_min / lcm(q_i) (times a gcd, ignored)
     fundamental = f_min / math.lcm(*denominators)
     nums = [round(f / fundamental) for f in freqs]
-    return 1.0 / (fundamental * math.gcd(*nums))
+    return float(1.0 / (fundamental * math.gcd(*nums)))  # a Python float: YAML writes it
 
 
 def _positive_rows(f: Fields, key: str, n: int, lengths=None) -> list[np.ndarray]:
