@@ -163,7 +163,7 @@ def test_row_spacing_of_a_long_log():
     assert mom.MAX_ROWS == 65536
     from guardid.commands.identify import _EVERY_TICK_HELP
 
-    assert "longer than 65536 ticks (at most 65536 rows" in _EVERY_TICK_HELP  # says the same
+    assert "longer than 65536 ticks (at most 65536 rows," in _EVERY_TICK_HELP  # says the same
     assert mom.row_spacing(4000, fs, fc) == 1
     assert mom.row_spacing(65536, fs, fc) == 1
     assert mom.row_spacing(65537, fs, fc) == 2

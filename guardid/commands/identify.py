@@ -193,16 +193,16 @@ _EVERY_TICK_HELP = (
     "Momentum form: a row at every tick whatever the log's length, refused when the log has "
     "fewer usable ticks than 2 x parameters x 2 / cut-off s (about 23 s on the guard). The "
     "default keeps the same rows but falls back to --spaced-rows on such a short log, and "
-    "keeps a row every m-th tick on a log longer than 65536 ticks (at most 65536 rows: "
-    "identify's memory stays flat). LS and WLS count the noise that neighbouring rows share "
-    "(each joint's residual autocovariance over 2 / cut-off s; BLS's std does not)."
+    "keeps a row every m-th tick on a log longer than 65536 ticks (at most 65536 rows, "
+    "each the mean of its m ticks: identify's memory about that of the spaced rows). LS and "
+    "WLS count the noise that neighbouring rows share (each joint's residual "
+    "autocovariance over 2 / cut-off s; BLS's std does not)."
 )
 _SPACED_ROWS_HELP = (
     "Momentum form: one row every 1 / (2 x cut-off) s, whose errors are about independent "
     "(identify's rows before 2026-11-27): faster, with the white std, but less precise (on "
-    "simulated runs their rms error was 1.05-2.3x that of rows at every tick, median per "
-    "set). The spacing used is recorded in params.yaml (conditioning.decimate); "
-    "docs/IDENTIFY.md."
+    "simulated runs their rms error was 1.05-2.2x the default rows', median per set). The "
+    "spacing used is recorded in params.yaml (conditioning.decimate); docs/IDENTIFY.md."
 )
 
 
