@@ -164,6 +164,8 @@ def test_row_spacing_of_a_long_log():
     from guardid.commands.identify import _EVERY_TICK_HELP
 
     assert "longer than 65536 ticks (at most 65536 rows," in _EVERY_TICK_HELP  # says the same
+    assert mom.row_spacing(16 * 65536, fs, fc) == 16 < mom.row_spacing(16 * 65536 + 1, fs, fc) + 1
+    assert 16 * 65536 * 0.015 / 3600 == pytest.approx(4.4, abs=0.05)  # "about 4.4 h"
     assert mom.row_spacing(4000, fs, fc) == 1
     assert mom.row_spacing(65536, fs, fc) == 1
     assert mom.row_spacing(65537, fs, fc) == 2
@@ -229,3 +231,61 @@ def test_rows_of_another_form_are_refused(gap_guard_captures, tmp_path, option):
     res = invoke("identify", gap_guard_captures[1], "--every-tick", *option, "-o", out)
     assert res.exit_code == 2 and not out.exists()
     assert len(res.stderr.strip().splitlines()) == 1 and "momentum form only" in res.stderr
+
+
+def test_iv_and_didim_rows_keep_the_acceleration_forms_spacing(gap_guard_captures):
+    """--every-tick (decimate 1) is the momentum form's: IV and DIDIM condition the runs again
+    in the acceleration form, whose std is white, at that form's own spacing (about
+    1 / (2 fc)), not at every tick."""
+    from types import SimpleNamespace
+
+    from guardid.identify.rows import closed_loop_rows
+
+    run = load_run(gap_guard_captures[1])
+    desc = load_robot("guard")
+    kw = dict(highest_harmonic_hz=run.highest_harmonic_hz, periods_s=[None])
+    tick = stacked_rows([run_signals(run, [run])], desc, ConditioningOptions(decimate=1), **kw)
+    fit = SimpleNamespace(rows=tick, runs=[run], description=desc, effort_is_torque=False,
+                          options=SimpleNamespace(conditioning=ConditioningOptions(decimate=1),
+                                                  in_current_units=False))  # fmt: skip
+    own = closed_loop_rows(fit)
+    assert own.options.equation == "acceleration"
+    assert own.cond.decimation > 4 and len(own.A) < len(tick.A) / 4
+    assert own.row_ticks is None and own.lag_ticks == 0
+
+
+def test_tick_count_rounds_half_ticks_up():
+    """Stamps half a tick off the grid (a step of 1.5 ticks, in binary-exact 1/64 s): each
+    its own tick, counted by hand, where numpy's round-half-to-even would give two the
+    same."""
+    from guardid.identify.rows import tick_count
+
+    dt = 1.0 / 64.0
+    t = dt * np.array([0.0, 1.0, 2.5, 3.5, 4.5, 5.5])
+    np.testing.assert_array_equal(tick_count(t, dt), [0, 1, 3, 4, 5, 6])
+    assert len(np.unique(np.rint(t / dt))) < len(t)  # what rint would have done
+
+
+def test_a_long_logs_fallback_counts_the_means_ticks_in_its_window(
+    gap_guard_captures, tmp_path, monkeypatch
+):
+    """Rows every 5th tick (a budget of 400 rows on about 2000 ticks) need 2 x 12 x (64 +
+    5) = 1656 usable ticks, the window with the mean's 4 more; a log with fewer falls back
+    to the spaced rows and identifies (it was refused by the fit's own check)."""
+    monkeypatch.setattr(mom, "MAX_ROWS", 400)
+    text = gap_guard_captures[1].read_text()
+    rows = len(data_rows(text)[1])
+    log = tmp_path / "short.csv"
+    log.write_text(without_footer(without_rows(text, 2000, rows - 2000)))
+    run = load_run(log)
+    got = stacked_rows([run_signals(run, [run])], load_robot("guard"), ConditioningOptions(),
+                       highest_harmonic_hz=run.highest_harmonic_hz, periods_s=[None])  # fmt: skip
+    five = stacked_rows([run_signals(run, [run])], load_robot("guard"),
+                        ConditioningOptions(decimate=5),
+                        highest_harmonic_hz=run.highest_harmonic_hz, periods_s=[None])  # fmt: skip
+    usable = 5 * len(five.A)
+    assert 2 * 12 * (64 + 1) <= usable < 2 * 12 * (64 + 5)  # between the two windows' needs
+    assert got.options.decimate == 16 and got.lag_ticks == 0
+    out = tmp_path / "p.yaml"
+    res = invoke("identify", log, "--method", "wls", "-o", out)
+    assert res.exit_code == 0, res.stderr

@@ -194,9 +194,10 @@ _EVERY_TICK_HELP = (
     "fewer usable ticks than 2 x parameters x 2 / cut-off s (about 23 s on the guard). The "
     "default keeps the same rows but falls back to --spaced-rows on such a short log, and "
     "keeps a row every m-th tick on a log longer than 65536 ticks (at most 65536 rows, "
-    "each the mean of its m ticks: identify's memory about that of the spaced rows). LS and "
-    "WLS count the noise that neighbouring rows share (each joint's residual "
-    "autocovariance over 2 / cut-off s; BLS's std does not)."
+    "each the mean of its m ticks, up to the spaced rows from about 4.4 h on the guard: "
+    "identify's memory about that of the spaced rows). LS and WLS count the noise that "
+    "neighbouring rows share (each joint's residual autocovariance over 2 / cut-off s; "
+    "BLS's std does not)."
 )
 _SPACED_ROWS_HELP = (
     "Momentum form: one row every 1 / (2 x cut-off) s, whose errors are about independent "

@@ -671,7 +671,7 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
         imp = imp - electrical_damping(model.description, gain) * slope_term(v, dt, points)
     rows = np.arange(0, len(t), k)
     if mean_ticks > 1:  # on the tick count, not the samples: a lost tick does not shift them
-        tick = np.rint((t - t[0]) / dt).astype(np.int64)
+        tick = np.floor((t - t[0]) / dt + 0.5).astype(np.int64)  # half up, as row_ticks
         rows = np.flatnonzero(tick % k == 0)
     chunks = period_chunks(model, q, v, dt, kink)  # only the kept rows' filtered values stay
     A, y, jm, transient = filtered_rows(chunks, imp, valid, sos, skip, rows, model.base.B.shape[1],

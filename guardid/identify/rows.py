@@ -151,16 +151,29 @@ def stacked_rows(
         joined.notes.append(f"rows grouped by their phase in the excitation's period "
                             f"({phase_group_count(groups)} groups; LS and WLS count in their "
                             "std an error that repeats every period)")  # fmt: skip
+    doubts = _doubts(form.conds, form.choice)
     ticks = row_ticks(form.conds, form.lag_ticks) if form.lag_ticks > 0 else None
     if ticks is not None and (len(ticks) != len(A) or np.unique(ticks).size != ticks.size):
         ticks = None  # rows and conditioned samples do not line up, or two share a tick
+        doubts.append("the rows' ticks do not line up with the log's time stamps: LS and WLS "
+                      "take the rows' errors as independent, and their std is too small; "
+                      "use --spaced-rows")  # fmt: skip
     if ticks is not None:
         joined.notes.append(f"rows within {form.lag_ticks} ticks of each other share "
                             "their noise through the filter (LS and WLS count it)")  # fmt: skip
-    return Rows(joined, A, y, form.options, form.choice, _doubts(form.conds, form.choice),
+    return Rows(joined, A, y, form.options, form.choice, doubts,
                 form.conds if form.keep_runs else [], column_noise=form.column_noise,
                 period_groups=groups, row_ticks=ticks,
                 lag_ticks=form.lag_ticks if ticks is not None else 0)  # fmt: skip
+
+
+def tick_count(t_s, dt: float) -> np.ndarray:
+    """(N,) int64 each time stamp's tick from the first, (t - t0) / dt rounded half up (not
+    numpy's half to even, which would give two stamps half a tick apart one tick)."""
+    t = np.asarray(t_s, dtype=float)
+    if not t.size:
+        return np.zeros(0, np.int64)
+    return np.floor((t - t[0]) / dt + 0.5).astype(np.int64)
 
 
 def row_ticks(conds, lag_ticks: int) -> np.ndarray:
@@ -172,7 +185,7 @@ def row_ticks(conds, lag_ticks: int) -> np.ndarray:
         t = np.asarray(cond.t, dtype=float)
         dt = float(cond.momentum.dt) if getattr(cond, "momentum", None) is not None else (
             float(np.median(np.diff(t))) if t.size > 1 else 1.0)  # fmt: skip
-        tick = np.rint((t - t[0]) / dt).astype(np.int64) if t.size else np.zeros(0, np.int64)
+        tick = tick_count(t, dt)
         out.append(tick[cond.mask] + start)
         start += int(tick[-1]) + int(lag_ticks) + 1 if tick.size else 0
         step = max(int(getattr(cond, "decimation", 1)), 1)
@@ -238,7 +251,8 @@ def closed_loop_rows(rows):
     cached = rows.rows.acceleration_rows
     if cached is None:
         options = rows.options.conditioning or ConditioningOptions()
-        options = replace(options, equation="acceleration", order=None)
+        # the acceleration form at its own spacing: its std is white (never every tick)
+        options = replace(options, equation="acceleration", order=None, decimate=None)
         cached = stacked_rows(
             [run_signals(r, rows.runs) for r in rows.runs], rows.description, options,
             in_current_units=rows.options.in_current_units,

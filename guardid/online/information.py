@@ -47,7 +47,8 @@ class DecimatedLS:
 
     @staticmethod
     def every_for(cutoff_hz: float, dt_s: float) -> int:
-        """The offline pipeline's decimation: one row per half cut-off period [-]."""
+        """The offline pipeline's spaced rows (``identify --spaced-rows``): one row per half
+        cut-off period [-], whose errors are about independent (the white std holds)."""
         return max(1, int(1.0 / (dt_s * 2.0 * cutoff_hz)))
 
     def update(self, A_k, y_k) -> DecimatedLS:
