@@ -133,9 +133,25 @@ def correlation_ticks(fs_hz: float, cutoff_hz: float) -> int:
 MAX_ROWS = 65536
 """Rows the momentum form keeps at most by default (:func:`row_spacing`) [-]: about 16 min of
 ticks at the guard's 15 ms, and about the rows of a 4 h guard log at the spacing 1 / (2 fc).
-Beyond, a row every few ticks keeps identify's memory and time those of the spaced rows
+Beyond, a row every few ticks keeps identify's memory about that of the spaced rows
 (issue 30: a 4 h log under 250 MiB); rows a few ticks apart share most of their noise
 through the filter, so the longer log's rows at every tick would add little."""
+
+
+def ticks_needed(n_params: int, window_ticks: int) -> int:
+    """Usable ticks a run needs for the std of rows closer than 1 / (2 fc) [ticks]: 2 x the
+    fit's parameters x the ``window_ticks`` + 1 over which rows share their noise (what the
+    fit takes up of the residuals, about p (L + 1) / ticks, would otherwise pass one half)."""
+    return 2 * int(n_params) * (int(window_ticks) + 1)
+
+
+def tick_count(t_s, dt: float) -> np.ndarray:
+    """(N,) int64 each time stamp's tick from the first, (t - t0) / dt rounded half up (not
+    numpy's half to even, which would give two stamps half a tick apart one tick)."""
+    t = np.asarray(t_s, dtype=float)
+    if not t.size:
+        return np.zeros(0, np.int64)
+    return np.floor((t - t[0]) / dt + 0.5).astype(np.int64)
 
 
 def row_spacing(ticks: int, fs_hz: float, cutoff_hz: float) -> int:
@@ -671,8 +687,7 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
         imp = imp - electrical_damping(model.description, gain) * slope_term(v, dt, points)
     rows = np.arange(0, len(t), k)
     if mean_ticks > 1:  # on the tick count, not the samples: a lost tick does not shift them
-        tick = np.floor((t - t[0]) / dt + 0.5).astype(np.int64)  # half up, as row_ticks
-        rows = np.flatnonzero(tick % k == 0)
+        rows = np.flatnonzero(tick_count(t, dt) % k == 0)
     chunks = period_chunks(model, q, v, dt, kink)  # only the kept rows' filtered values stay
     A, y, jm, transient = filtered_rows(chunks, imp, valid, sos, skip, rows, model.base.B.shape[1],
                                         mean_ticks)  # fmt: skip

@@ -100,9 +100,8 @@ def momentum_rows(runs, description, options, why, model, free, in_current_units
         spacing_note = [f"rows every {spacing} ticks, each the mean of its {spacing} ticks: at "
                         f"most {mom.MAX_ROWS} rows of a log of {ticks} ticks (identify's "
                         "memory; docs/IDENTIFY.md)"]  # fmt: skip
-    # usable ticks for the std of rows closer than spaced (the window with the mean's ticks:
-    # the fit's check, identify.pipeline._fit_rows)
-    need = 2 * len(free) * (lag + mean_ticks(spacing))
+    # the window with the mean's ticks, as the fit's check (identify.pipeline._fit_rows)
+    need = mom.ticks_needed(len(free), lag + mean_ticks(spacing) - 1)
     usable = spacing * sum(len(a) for a in As)
     if options.decimate is None and spacing < spaced and usable < need:
         spacing_note = [f"rows every {spaced} ticks (1 / (2 x cut-off)): {usable} usable "

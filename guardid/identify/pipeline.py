@@ -20,6 +20,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from guardid.conditioning.bandwidth import HARMONIC_FACTOR
+from guardid.conditioning.momentum import ticks_needed
 from guardid.conditioning.options import ConditioningOptions
 from guardid.dynamics import build_model
 from guardid.errors import GuardidError
@@ -198,12 +199,12 @@ def _fit_rows(rows, runs, description, options, torque) -> FitRows:
     cond, A, y = rows
     free = free_columns(model, description)
     spacing = max(int(cond.decimation), 1)
-    if rows.row_ticks is not None and spacing * len(A) < 2 * len(free) * (rows.lag_ticks + 1):
-        # what the fit takes up of the residuals, about p (L + 1) / (spacing N), passes 1/2
+    need = ticks_needed(len(free), rows.lag_ticks)
+    if rows.row_ticks is not None and spacing * len(A) < need:
         raise GuardidError(
             f"rows every {spacing} ticks: {spacing * len(A)} usable ticks are too few for "
             f"their std (the fit's {len(free)} parameters over a window of "
-            f"{rows.lag_ticks + 1} ticks need {2 * len(free) * (rows.lag_ticks + 1)}): "
+            f"{rows.lag_ticks + 1} ticks need {need}): "
             "capture longer or leave the rows' spacing to identify"
         )
     return FitRows(

@@ -167,15 +167,6 @@ def stacked_rows(
                 lag_ticks=form.lag_ticks if ticks is not None else 0)  # fmt: skip
 
 
-def tick_count(t_s, dt: float) -> np.ndarray:
-    """(N,) int64 each time stamp's tick from the first, (t - t0) / dt rounded half up (not
-    numpy's half to even, which would give two stamps half a tick apart one tick)."""
-    t = np.asarray(t_s, dtype=float)
-    if not t.size:
-        return np.zeros(0, np.int64)
-    return np.floor((t - t[0]) / dt + 0.5).astype(np.int64)
-
-
 def row_ticks(conds, lag_ticks: int) -> np.ndarray:
     """(M,) the tick of each stacked usable row of ``conds`` (one conditioned run each,
     ticks ``cond.t`` on a grid of its median step), the runs more than ``lag_ticks`` ticks
@@ -185,7 +176,7 @@ def row_ticks(conds, lag_ticks: int) -> np.ndarray:
         t = np.asarray(cond.t, dtype=float)
         dt = float(cond.momentum.dt) if getattr(cond, "momentum", None) is not None else (
             float(np.median(np.diff(t))) if t.size > 1 else 1.0)  # fmt: skip
-        tick = tick_count(t, dt)
+        tick = mom.tick_count(t, dt)
         out.append(tick[cond.mask] + start)
         start += int(tick[-1]) + int(lag_ticks) + 1 if tick.size else 0
         step = max(int(getattr(cond, "decimation", 1)), 1)
