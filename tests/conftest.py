@@ -85,6 +85,18 @@ def gap_guard_wls_params(gap_guard_captures, tmp_path_factory) -> dict:
     return out
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _one_blas_thread_in_every_test_process():
+    """BLAS on one thread in each test process for the whole run, as every guardid command
+    sets for itself (:func:`guardid.cli._one_blas_thread`, before numpy loads). In a test
+    process numpy has loaded with OpenBLAS's default before any command runs in it
+    (CliRunner) or any library call, and the two xdist workers already fill the 2-core
+    runner, where a second BLAS thread only spins: three conditioning and identification
+    modules took 59 s of CPU with two threads, 40 s with one (2026-11-27)."""
+    with one_blas_thread():
+        yield
+
+
 @pytest.fixture(scope="module")
 def blas_one_thread():
     """BLAS on one thread for a whole module of CPU-bound reproductions: OpenBLAS's threads

@@ -138,8 +138,8 @@ def test_same_seed_gives_byte_identical_telemetry(lockstep_run):
 
 
 def test_pty_gives_the_same_telemetry_as_sim(lockstep_run):
-    """``guardid fake-port`` in lock-step: the first 200 ticks (3 s: the ramp-in into the
-    motion) over a pty equal the sim:// run tick for tick. The pty server steps after the
+    """``guardid fake-port`` in lock-step: the first 100 ticks (1.5 s, in the ramp-in into
+    the motion) over a pty equal the sim:// run tick for tick. The pty server steps after the
     host's answer and ``--settle-ms`` of silence, or after ``--idle-ms`` without an answer
     (the first frames, which the host need not answer). Both are generous here, so that a
     host descheduled by load beside the test (for less than 50 ms between two writes of its
@@ -147,7 +147,7 @@ def test_pty_gives_the_same_telemetry_as_sim(lockstep_run):
     trajectory runs ``ahead`` of the recorded rows, so every recorded frame is answered and
     the end needs no fallback. The session's wait is a generous bound ended by the frame."""
     rows_sim, _, _ = lockstep_run
-    n = 200
+    n = 100
     env = dict(os.environ)
     env.pop("GUARDID_FAKEPORT_DEVICE", None)
     proc = subprocess.Popen(
