@@ -91,8 +91,12 @@ def _one_blas_thread_in_every_test_process():
     sets for itself (:func:`guardid.cli._one_blas_thread`, before numpy loads). In a test
     process numpy has loaded with OpenBLAS's default before any command runs in it
     (CliRunner) or any library call, and the two xdist workers already fill the 2-core
-    runner, where a second BLAS thread only spins: three conditioning and identification
-    modules took 59 s of CPU with two threads, 40 s with one (2026-11-27)."""
+    runner, where a second BLAS thread only spins (test_identify_conditioning,
+    test_identify_guard and test_every_tick: 59 s of CPU with two threads, 40 s with one,
+    2026-11-27). scipy.linalg first: scipy has an OpenBLAS of its own, which the limit
+    reaches only when loaded."""
+    import scipy.linalg  # noqa: F401  (its own OpenBLAS loaded, so that the limit covers it)
+
     with one_blas_thread():
         yield
 

@@ -181,7 +181,7 @@ def _full_electrical_reference(volts, x0, period):
 def test_reduced_electrical_model_matches_stiff_reference():
     plant = Plant(DESC, model=MODEL, friction=False, limits=False, noise=False, q0=[0.0, 0.2])
     samples = [plant.step([6 * math.sin(0.1 * k) + 3 * math.cos(0.37 * k),
-                           5 + 4 * math.sin(0.13 * k)]) for k in range(20)]  # fmt: skip
+                           5 + 4 * math.sin(0.13 * k)]) for k in range(40)]  # fmt: skip
     ref = _full_electrical_reference([s.voltage_true for s in samples], [0.0, 0.2, 0.0, 0.0],
                                      DESC.sample_period)  # fmt: skip
     for s, (q, qd, i, i_mean) in zip(samples, ref, strict=True):
