@@ -38,8 +38,7 @@ def excitation(tmp_path_factory):
         name = "excite" + "".join(str(a).replace("-", "_") for a in args)
 
         def make(d):
-            with one_blas_thread():
-                res = invoke("excite", *args, "-o", d / "traj.yaml")
+            res = invoke("excite", *args, "-o", d / "traj.yaml")
             assert res.exit_code == 0, res.output
 
         return made_once(tmp_path_factory, name, make) / "traj.yaml"
@@ -58,16 +57,15 @@ def gap_guard_captures(tmp_path_factory) -> dict:
     copy or edit them, never write beside them."""
     d = tmp_path_factory.mktemp("gap_guard_captures")
     traj = d / "traj.yaml"
-    with one_blas_thread():
-        res = invoke("excite", "--no-optimise", "-o", traj)
+    res = invoke("excite", "--no-optimise", "-o", traj)
+    assert res.exit_code == 0, res.output
+    out = {}
+    for seed in GAP_SEEDS:
+        log = d / f"run{seed}.csv"
+        res = invoke("capture", "--port", f"sim://guard?seed={seed}", "--trajectory", traj,
+                     "--duration", GAP_CAPTURE_S, "--quiet", "-o", log)  # fmt: skip
         assert res.exit_code == 0, res.output
-        out = {}
-        for seed in GAP_SEEDS:
-            log = d / f"run{seed}.csv"
-            res = invoke("capture", "--port", f"sim://guard?seed={seed}", "--trajectory", traj,
-                         "--duration", GAP_CAPTURE_S, "--quiet", "-o", log)  # fmt: skip
-            assert res.exit_code == 0, res.output
-            out[seed] = log
+        out[seed] = log
     return out
 
 
@@ -77,11 +75,10 @@ def gap_guard_wls_params(gap_guard_captures, tmp_path_factory) -> dict:
     :func:`gap_guard_captures` (the reference the damaged copies are held against)."""
     d = tmp_path_factory.mktemp("gap_guard_wls")
     out = {}
-    with one_blas_thread():
-        for seed, log in gap_guard_captures.items():
-            out[seed] = d / f"p{seed}.yaml"
-            res = invoke("identify", log, "--method", "wls", "-o", out[seed])
-            assert res.exit_code == 0, res.stderr
+    for seed, log in gap_guard_captures.items():
+        out[seed] = d / f"p{seed}.yaml"
+        res = invoke("identify", log, "--method", "wls", "-o", out[seed])
+        assert res.exit_code == 0, res.stderr
     return out
 
 
@@ -93,19 +90,10 @@ def _one_blas_thread_in_every_test_process():
     (CliRunner) or any library call, and the two xdist workers already fill the 2-core
     runner, where a second BLAS thread only spins (test_identify_conditioning,
     test_identify_guard and test_every_tick: 59 s of CPU with two threads, 40 s with one,
-    2026-11-27). scipy.linalg first: scipy has an OpenBLAS of its own, which the limit
-    reaches only when loaded."""
+    2026-11-27; seed001-table1's reproduction about 11 s on one, 20 s on two). scipy.linalg
+    first: scipy has an OpenBLAS of its own, which the limit reaches only when loaded."""
     import scipy.linalg  # noqa: F401  (its own OpenBLAS loaded, so that the limit covers it)
 
-    with one_blas_thread():
-        yield
-
-
-@pytest.fixture(scope="module")
-def blas_one_thread():
-    """BLAS on one thread for a whole module of CPU-bound reproductions: OpenBLAS's threads
-    only spin on the busy 2-core runner (seed001-table1: about 11 s of CPU on one thread,
-    20 s on two, for the same figures)."""
     with one_blas_thread():
         yield
 
@@ -113,13 +101,12 @@ def blas_one_thread():
 @pytest.fixture(scope="session")
 def reproduced(tmp_path_factory):
     """``reproduced(name, run)``: the Report of ``run()``, a deterministic reproduction,
-    made once per test run (under one BLAS thread, as :func:`blas_one_thread`) whichever
+    made once per test run (under the session's one BLAS thread) whichever
     xdist worker asks first, and unpickled in each worker that asks."""
 
     def get(name: str, run):
         def make(d):
-            with one_blas_thread():
-                (d / "report.pickle").write_bytes(pickle.dumps(run()))
+            (d / "report.pickle").write_bytes(pickle.dumps(run()))
 
         d = made_once(tmp_path_factory, name, make)
         return pickle.loads((d / "report.pickle").read_bytes())
@@ -160,14 +147,13 @@ def noise_free_replay(tmp_path_factory) -> dict:
         values = {k: v * scale for k, v in true.items()}
         out[key].write_text(yaml.safe_dump({"guardid-reference": 1, "label": key,
                                             "values": values}))  # fmt: skip
-    with one_blas_thread():
-        res = invoke("excite", "--no-optimise", "-o", out["traj"])
+    res = invoke("excite", "--no-optimise", "-o", out["traj"])
+    assert res.exit_code == 0, res.output
+    for key, extra in (("yaml", ""), ("twin_true", f"&params={out['true']}"),
+                       ("twin_off", f"&params={out['off']}")):  # fmt: skip
+        out[key] = d / f"{key}.csv"
+        port = f"sim://guard?noise=0{extra}"
+        res = invoke("capture", "--port", port, "--trajectory", out["traj"], "--duration",
+                     REPLAY_CAPTURE_S, "--quiet", "-o", out[key])  # fmt: skip
         assert res.exit_code == 0, res.output
-        for key, extra in (("yaml", ""), ("twin_true", f"&params={out['true']}"),
-                           ("twin_off", f"&params={out['off']}")):  # fmt: skip
-            out[key] = d / f"{key}.csv"
-            port = f"sim://guard?noise=0{extra}"
-            res = invoke("capture", "--port", port, "--trajectory", out["traj"], "--duration",
-                         REPLAY_CAPTURE_S, "--quiet", "-o", out[key])  # fmt: skip
-            assert res.exit_code == 0, res.output
     return out

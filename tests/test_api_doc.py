@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from badinput_tools import invoke, one_blas_thread
+from badinput_tools import invoke
 from realdata import DFKI
 
 import guardid
@@ -32,8 +32,7 @@ def folder(gap_guard_captures, tmp_path_factory):
     and params.yaml (LS and WLS), and DFKI runs 00 and 01."""
     d = tmp_path_factory.mktemp("api_doc")
     shutil.copy(gap_guard_captures[1], d / "run.csv")
-    with one_blas_thread():
-        res = invoke("identify", d / "run.csv", "--method", "ls,wls", "-o", d / "params.yaml")
+    res = invoke("identify", d / "run.csv", "--method", "ls,wls", "-o", d / "params.yaml")
     assert res.exit_code == 0, res.output
     for k in (0, 1):
         shutil.copy(DFKI / f"trajectory_0{k}.csv", d)
@@ -55,8 +54,7 @@ def test_the_examples_of_docs_api_run(folder):
 
 @pytest.fixture(scope="module")
 def result(folder):
-    with one_blas_thread():
-        return guardid.identify_logs(folder / "run.csv", methods=("ls", "wls"))
+    return guardid.identify_logs(folder / "run.csv", methods=("ls", "wls"))
 
 
 def test_identify_logs_finds_the_simulated_robot_within_3_std(result):
@@ -129,8 +127,7 @@ def test_an_untrusted_fit_raises_unless_forced(folder, monkeypatch):
         return out
 
     monkeypatch.setattr(pipeline, "identify", untrusted)
-    with one_blas_thread(), pytest.raises(UntrustedResult, match="made so here"):
+    with pytest.raises(UntrustedResult, match="made so here"):
         guardid.identify_logs(folder / "run.csv", methods="ls")
-    with one_blas_thread():
-        forced = guardid.identify_logs(folder / "run.csv", methods="ls", force=True)
+    forced = guardid.identify_logs(folder / "run.csv", methods="ls", force=True)
     assert forced.identification.untrusted == ["rank-deficient regressor (made so here)"]

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from badinput_tools import ERROR_PREFIX, invoke, one_blas_thread, short_capture
+from badinput_tools import ERROR_PREFIX, invoke, short_capture
 
 from guardid.robot.loader import shipped_path
 
@@ -105,53 +105,52 @@ def _snapshot(d: Path) -> dict[str, str]:
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("badinput")
-    with one_blas_thread():
-        run = short_capture(d)
-        params = d / "params.yaml"
-        assert invoke("identify", run, "--method", "ls", "-o", params).exit_code == 0
-        f = Files(d, run, params, d / "traj.yaml")
-        text = run.read_text()
-        # robot YAMLs: binary garbage, a YAML syntax error, a mistyped field, another robot
-        (d / "garbage.yaml").write_bytes(bytes(range(256)) * 8)
-        (d / "broken.yaml").write_text("name: x\njoints: [\n  {type: revolute\n")
-        guard = shipped_path("guard").read_text()
-        (d / "typo.yaml").write_text(guard.replace("gear_ratio: ", "gear_ratio: abc #", 1))
-        other = yaml.safe_load(guard)
-        other["name"] = "guard_b"
-        other["links"][1]["mass"] = 2.0 * other["links"][1]["mass"]
-        (d / "guard_b.yaml").write_text(yaml.safe_dump(other, sort_keys=False))
-        # logs: a copy, another robot's, NaN / inf, gzip, two appended, a cut last row
-        for name in ("copy.csv", "existing.csv", "own.csv"):
-            (d / name).write_text(text)
-        (d / "other.csv").write_text(_header_robot(text, "guard_b", d / "guard_b.yaml"))
-        lines, rows = _data_lines(text)
-        for name, value in (("nan.csv", "nan"), ("inf.csv", "inf")):
-            bad = list(lines)
-            parts = bad[rows[100]].split(",")
-            parts[4] = value  # q_pan_rad of data row 101
-            bad[rows[100]] = ",".join(parts)
-            (d / name).write_text("".join(bad))
-        (d / "gzip.csv").write_bytes(gzip.compress(text.encode()))
-        (d / "dropped.csv").write_text(_drop_columns(text, ("q_pan_rad", "i_pan_A")))
-        (d / "no_voltage.csv").write_text(_drop_columns(text, ("v_pan_V", "v_tilt_V")))
-        no_footer = "".join(lines[: rows[-1] + 1])
-        (d / "appended.csv").write_text(no_footer + "".join(lines[k] for k in rows))
-        (d / "cut.csv").write_text(no_footer[: -len(lines[rows[-1]]) // 2])
-        # another robot's parameters (same structure, another name)
-        p = yaml.safe_load(params.read_text())
-        p["robot"] = "guard_b"
-        (d / "params_b.yaml").write_text(yaml.safe_dump(p, sort_keys=False))
-        # a run in which the robot never moves, and an existing output
-        _still_trajectory(f.traj, d / "still.yaml")
-        res = invoke("capture", "--trajectory", d / "still.yaml", "--duration", 10, "--quiet",
-                     "-o", d / "still.csv")  # fmt: skip
-        assert res.exit_code == 0, res.output
-        _issue26_files(d, f, guard)
-        big = yaml.safe_load(f.traj.read_text())
-        big["a"] = [[10 * x for x in row] for row in big["a"]]
-        big["b"] = [[10 * x for x in row] for row in big["b"]]
-        (d / "big.yaml").write_text(yaml.safe_dump(big))
-        yield f
+    run = short_capture(d)
+    params = d / "params.yaml"
+    assert invoke("identify", run, "--method", "ls", "-o", params).exit_code == 0
+    f = Files(d, run, params, d / "traj.yaml")
+    text = run.read_text()
+    # robot YAMLs: binary garbage, a YAML syntax error, a mistyped field, another robot
+    (d / "garbage.yaml").write_bytes(bytes(range(256)) * 8)
+    (d / "broken.yaml").write_text("name: x\njoints: [\n  {type: revolute\n")
+    guard = shipped_path("guard").read_text()
+    (d / "typo.yaml").write_text(guard.replace("gear_ratio: ", "gear_ratio: abc #", 1))
+    other = yaml.safe_load(guard)
+    other["name"] = "guard_b"
+    other["links"][1]["mass"] = 2.0 * other["links"][1]["mass"]
+    (d / "guard_b.yaml").write_text(yaml.safe_dump(other, sort_keys=False))
+    # logs: a copy, another robot's, NaN / inf, gzip, two appended, a cut last row
+    for name in ("copy.csv", "existing.csv", "own.csv"):
+        (d / name).write_text(text)
+    (d / "other.csv").write_text(_header_robot(text, "guard_b", d / "guard_b.yaml"))
+    lines, rows = _data_lines(text)
+    for name, value in (("nan.csv", "nan"), ("inf.csv", "inf")):
+        bad = list(lines)
+        parts = bad[rows[100]].split(",")
+        parts[4] = value  # q_pan_rad of data row 101
+        bad[rows[100]] = ",".join(parts)
+        (d / name).write_text("".join(bad))
+    (d / "gzip.csv").write_bytes(gzip.compress(text.encode()))
+    (d / "dropped.csv").write_text(_drop_columns(text, ("q_pan_rad", "i_pan_A")))
+    (d / "no_voltage.csv").write_text(_drop_columns(text, ("v_pan_V", "v_tilt_V")))
+    no_footer = "".join(lines[: rows[-1] + 1])
+    (d / "appended.csv").write_text(no_footer + "".join(lines[k] for k in rows))
+    (d / "cut.csv").write_text(no_footer[: -len(lines[rows[-1]]) // 2])
+    # another robot's parameters (same structure, another name)
+    p = yaml.safe_load(params.read_text())
+    p["robot"] = "guard_b"
+    (d / "params_b.yaml").write_text(yaml.safe_dump(p, sort_keys=False))
+    # a run in which the robot never moves, and an existing output
+    _still_trajectory(f.traj, d / "still.yaml")
+    res = invoke("capture", "--trajectory", d / "still.yaml", "--duration", 10, "--quiet",
+                 "-o", d / "still.csv")  # fmt: skip
+    assert res.exit_code == 0, res.output
+    _issue26_files(d, f, guard)
+    big = yaml.safe_load(f.traj.read_text())
+    big["a"] = [[10 * x for x in row] for row in big["a"]]
+    big["b"] = [[10 * x for x in row] for row in big["b"]]
+    (d / "big.yaml").write_text(yaml.safe_dump(big))
+    yield f
 
 
 # id: (argv of guardid with {placeholders} for Files, exit code, words in the error line)
@@ -265,8 +264,7 @@ def _row_id(row):
 @pytest.mark.parametrize(("name", "template", "code", "words"), ROWS, ids=map(_row_id, ROWS))
 def test_bad_input_is_one_line(files, name, template, code, words):
     before = _snapshot(files.d)
-    with one_blas_thread():
-        result = invoke(*_argv(template, files))
+    result = invoke(*_argv(template, files))
     assert _snapshot(files.d) == before, "a file was created or changed"
     exc = result.exception
     assert exc is None or isinstance(exc, SystemExit), f"{type(exc).__name__}: {exc}"
@@ -281,8 +279,7 @@ def test_bad_input_is_one_line(files, name, template, code, words):
 
 def test_cut_last_row_is_a_warning_and_exit_0(files):
     """A log cut mid-row (a killed capture) is read without its partial row, with a note."""
-    with one_blas_thread():
-        result = invoke("identify", files / "cut.csv", "--method", "ls")
+    result = invoke("identify", files / "cut.csv", "--method", "ls")
     assert result.exit_code == 0, result.stderr
     assert "Traceback" not in result.stderr
     assert any("cut.csv" in line and "warning" in line for line in result.stderr.splitlines())
@@ -290,8 +287,7 @@ def test_cut_last_row_is_a_warning_and_exit_0(files):
 
 def test_a_log_without_voltages_is_identified_without_the_motors(files):
     """The v_* columns are optional: no voltages, no R and Ke, exit 0."""
-    with one_blas_thread():
-        result = invoke("identify", files / "no_voltage.csv", "--method", "ls")
+    result = invoke("identify", files / "no_voltage.csv", "--method", "ls")
     assert result.exit_code == 0, result.stderr
     assert "ZZ1R" in result.stdout and "motor pan" not in result.stdout
 
@@ -299,8 +295,7 @@ def test_a_log_without_voltages_is_identified_without_the_motors(files):
 def test_never_moved_with_force_writes_and_warns(files):
     """--force reports and writes an untrusted identification, saying why on stderr."""
     out = files / "forced.yaml"
-    with one_blas_thread():
-        result = invoke("identify", files / "still.csv", "--method", "ls", "--force", "-o", out)
+    result = invoke("identify", files / "still.csv", "--method", "ls", "--force", "-o", out)
     assert result.exit_code == 0, result.stderr
     assert "cannot be trusted" in result.stderr and "Fv1" in result.stderr
     written = yaml.safe_load(out.read_text())
@@ -309,8 +304,7 @@ def test_never_moved_with_force_writes_and_warns(files):
 
 def test_untrusted_identification_writes_nothing(files):
     out = files / "p_still_refused.yaml"
-    with one_blas_thread():
-        result = invoke("identify", files / "still.csv", "--method", "ls", "-o", out)
+    result = invoke("identify", files / "still.csv", "--method", "ls", "-o", out)
     assert result.exit_code == 4
     assert not out.exists()
 
@@ -322,10 +316,9 @@ def test_identify_refuses_logs_of_different_robots_but_takes_two_runs_of_one(fil
     half = lines[: rows[0]] + lines[rows[len(rows) // 2] :]
     second = tmp_path / "second.csv"
     second.write_text("".join(half))
-    with one_blas_thread():
-        ok = invoke("identify", files.run, second, "--method", "ls")
-        refused = invoke("identify", files.run, files / "other.csv", "--method", "ls")
-        refused_forced = invoke("identify", files.run, files / "other.csv", "--force")
+    ok = invoke("identify", files.run, second, "--method", "ls")
+    refused = invoke("identify", files.run, files / "other.csv", "--method", "ls")
+    refused_forced = invoke("identify", files.run, files / "other.csv", "--force")
     assert ok.exit_code == 0, ok.stderr
     assert refused.exit_code == 2
     assert refused.stderr.startswith(ERROR_PREFIX) and "guard_b" in refused.stderr

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 import pytest
-from badinput_tools import assert_ok_or_one_line, invoke, one_blas_thread
+from badinput_tools import assert_ok_or_one_line, invoke
 
 from guardid.closedloop.fit import MAX_ITER, closed_loop_fit, iv_solve, joint_weights
 from guardid.closedloop.rows import start_state
@@ -162,8 +162,7 @@ def test_an_iteration_that_does_not_settle_says_so():
 @pytest.fixture(scope="module")
 def closed_loop_result(noisy_log):
     run = load_run(noisy_log)
-    with one_blas_thread():
-        return identify([run], GUARD, IdentifyOptions(methods=("wls", "iv", "didim")))
+    return identify([run], GUARD, IdentifyOptions(methods=("wls", "iv", "didim")))
 
 
 @pytest.mark.parametrize("method", ["iv", "didim"])

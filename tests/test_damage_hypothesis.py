@@ -10,7 +10,7 @@ exception (a traceback). Seeded (derandomised), no deadline: 300 + 220 examples.
 from __future__ import annotations
 
 import pytest
-from badinput_tools import assert_ok_or_one_line, invoke, one_blas_thread, short_capture
+from badinput_tools import assert_ok_or_one_line, invoke, short_capture
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
@@ -27,12 +27,6 @@ class Base(tuple):
 
     def __repr__(self):
         return f"Base({len(self[0])} bytes, {self[1].name})"
-
-
-@pytest.fixture(scope="module", autouse=True)
-def _blas():
-    with one_blas_thread():
-        yield
 
 
 @pytest.fixture(scope="module")

@@ -14,7 +14,7 @@ import re
 import numpy as np
 import pytest
 import yaml
-from badinput_tools import invoke, one_blas_thread
+from badinput_tools import invoke
 from logedit import column, without_footer, without_rows
 from scipy.interpolate import CubicSpline
 
@@ -121,8 +121,7 @@ def test_a_long_gap_splits_the_run_names_the_gap_and_keeps_the_estimate(
     log.write_text(without_rows(text, first, lost))
     gap_at_s = column(text, "time_s")[first - 1]  # the row before the gap
     out = tmp_path / "p.yaml"
-    with one_blas_thread():
-        res = invoke("identify", log, "--method", "wls", "-o", out)
+    res = invoke("identify", log, "--method", "wls", "-o", out)
     assert res.exit_code == 0, res.stderr
     found = re.findall(r"gap at ([0-9.]+) s: (\d+) ticks \(([0-9.]+) s\) lost.*cost (\d+) rows",
                        res.stderr)  # fmt: skip
@@ -142,8 +141,7 @@ def test_a_long_gap_splits_the_run_names_the_gap_and_keeps_the_estimate(
 def test_a_single_lost_row_is_bridged_as_before(gap_guard_captures, intact_params, tmp_path, seed):
     log = tmp_path / "one.csv"
     log.write_text(without_rows(gap_guard_captures[seed].read_text(), 2000, 1))
-    with one_blas_thread():
-        res = invoke("identify", log, "--method", "wls", "-o", tmp_path / "p.yaml")
+    res = invoke("identify", log, "--method", "wls", "-o", tmp_path / "p.yaml")
     assert res.exit_code == 0, res.stderr
     assert "gap at" not in res.stderr and "[2]" not in res.stdout
     values, std, truth, _ = _params(tmp_path / "p.yaml")
@@ -162,11 +160,8 @@ def gap200_log(gap_guard_captures, tmp_path_factory):
 
 def test_validate_scores_each_segment_and_names_the_gap(gap200_log, gap_guard_captures, tmp_path):
     params = tmp_path / "p.yaml"
-    with one_blas_thread():
-        assert (
-            invoke("identify", gap_guard_captures[2], "--method", "ls", "-o", params).exit_code == 0
-        )
-        res = invoke("validate", gap200_log, "--params", params)
+    assert invoke("identify", gap_guard_captures[2], "--method", "ls", "-o", params).exit_code == 0
+    res = invoke("validate", gap200_log, "--params", params)
     assert res.exit_code == 0, res.stderr
     assert f"run {gap200_log}[1] (" in res.stdout and f"run {gap200_log}[2] (" in res.stdout
     assert re.search(r"gap at [0-9.]+ s: 200 ticks \(3 s\) lost", res.stdout), res.stdout
@@ -174,9 +169,8 @@ def test_validate_scores_each_segment_and_names_the_gap(gap200_log, gap_guard_ca
 
 
 def test_cv_keeps_one_fold_per_file(gap200_log, gap_guard_captures):
-    with one_blas_thread():
-        res = invoke("identify", gap200_log, gap_guard_captures[2], "--method", "ls", "--cv",
-                     "--cutoff", "4")  # fmt: skip
+    res = invoke("identify", gap200_log, gap_guard_captures[2], "--method", "ls", "--cv",
+                 "--cutoff", "4")  # fmt: skip
     assert res.exit_code == 0, res.stderr
     rows = [line.split()[0] for line in res.stdout.splitlines() if line.endswith("%")]
     assert rows == [str(gap200_log), str(gap_guard_captures[2]), "mean"], res.stdout
@@ -187,9 +181,8 @@ def test_closed_loop_iv_simulates_each_segment(gap200_log):
     """IV on a run split at a gap: each segment's simulation starts from its own first
     state (a single simulation across the gap would leave the rows misaligned: the
     command would stop, or the estimate drift); the estimate stays within 3 std."""
-    with one_blas_thread():
-        res = invoke("identify", gap200_log, "--method", "wls,iv", "--cutoff", "4", "-o",
-                     gap200_log.with_suffix(".yaml"))  # fmt: skip
+    res = invoke("identify", gap200_log, "--method", "wls,iv", "--cutoff", "4", "-o",
+                 gap200_log.with_suffix(".yaml"))  # fmt: skip
     assert res.exit_code == 0, res.stderr
     data = yaml.safe_load(gap200_log.with_suffix(".yaml").read_text())
     truth = np.array([p["yaml_value"] for p in data["base_parameters"]])
@@ -199,8 +192,7 @@ def test_closed_loop_iv_simulates_each_segment(gap200_log):
 
 
 def test_the_online_replay_says_it_restarts_at_the_gap(gap200_log):
-    with one_blas_thread():
-        res = invoke("identify", gap200_log, "--method", "ls,rls", "--cutoff", "4")
+    res = invoke("identify", gap200_log, "--method", "ls,rls", "--cutoff", "4")
     assert res.exit_code == 0, res.stderr
     assert "causal filter restarted after each of 1 gaps" in res.stdout, res.stdout
 
@@ -209,8 +201,7 @@ def test_a_run_with_no_stretch_long_enough_names_the_file(gap_guard_captures, tm
     text = gap_guard_captures[1].read_text()
     log = tmp_path / "short.csv"
     log.write_text(without_footer(without_rows(text, 20, 4000)))  # 20 rows left
-    with one_blas_thread():
-        res = invoke("identify", log, "--method", "ls", "-o", tmp_path / "p.yaml")
+    res = invoke("identify", log, "--method", "ls", "-o", tmp_path / "p.yaml")
     assert res.exit_code == 2
     lines = res.stderr.splitlines()
     assert len(lines) == 1 and lines[0].startswith("guardid: error: ") and "short.csv" in lines[0]
@@ -228,7 +219,7 @@ def test_the_python_api_splits_a_long_gap_as_the_command_does(gap200_log):
 
     acceleration = ConditioningOptions(equation="acceleration")
     options = IdentifyOptions(methods=("wls",), conditioning=acceleration)
-    with one_blas_thread(), pytest.warns(Warning, match="footer"):
+    with pytest.warns(Warning, match="footer"):
         result = identify([load_run(str(gap200_log))], load_robot("guard"), options)
     gap = [w for w in result.warnings if re.search(r"gap at [0-9.]+ s: 200 ticks", w)]
     assert len(gap) == 1, result.warnings

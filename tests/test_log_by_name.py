@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from badinput_tools import ERROR_PREFIX, invoke, one_blas_thread
+from badinput_tools import ERROR_PREFIX, invoke
 from logedit import column, data_rows, swapped, with_header_line, without_rows
 
 from guardid.errors import ConfigError
@@ -44,8 +44,7 @@ def _one_line_error(res, code: int, words, output=None) -> str:
 
 
 def _identify(log, out, *more):
-    with one_blas_thread():
-        return invoke("identify", log, "--method", "wls", "-o", out, *more)
+    return invoke("identify", log, "--method", "wls", "-o", out, *more)
 
 
 def _values(path) -> dict:
@@ -231,8 +230,7 @@ def test_the_python_api_reads_the_columns_by_name_too(capture, intact, tmp_path)
     log.write_text(swapped(capture.read_text(), "counts_pan", "counts_tilt", names_too=True))
     run = load_run(str(log))
     assert run.joint_names == ("tilt", "pan")  # the file's order: the case this test is for
-    with one_blas_thread():
-        result = identify([run], load_robot("guard"), IdentifyOptions(methods=("wls",)))
+    result = identify([run], load_robot("guard"), IdentifyOptions(methods=("wls",)))
     assert np.allclose(result.results["wls"].theta, intact["wls"], rtol=1e-9, atol=0)
 
 
@@ -246,9 +244,8 @@ def test_the_consistent_fit_of_the_python_api_reads_by_name_too(capture, tmp_pat
     log.write_text(swapped(capture.read_text(), "counts_pan", "counts_tilt", names_too=True))
     options = IdentifyOptions(methods=("ls",))
     guard = load_robot("guard")
-    with one_blas_thread():
-        swapped_fit = identify_consistent([load_run(str(log))], guard, options)[0]
-        intact_fit = identify_consistent([load_run(str(capture))], guard, options)[0]
+    swapped_fit = identify_consistent([load_run(str(log))], guard, options)[0]
+    intact_fit = identify_consistent([load_run(str(capture))], guard, options)[0]
     got, want = (r.results["consistent"].theta for r in (swapped_fit, intact_fit))
     assert np.allclose(got, want, rtol=1e-9, atol=0)
 

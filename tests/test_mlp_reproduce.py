@@ -11,8 +11,6 @@ from guardid.identify import IdentifyOptions, identify, method_names, run_from_a
 from guardid.reproduce import seed001_table1
 from guardid.robot import load_robot
 
-pytestmark = pytest.mark.usefixtures("blas_one_thread")
-
 
 @pytest.fixture(scope="module")
 def table1(seed001_table1_report):

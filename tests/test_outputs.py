@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from badinput_tools import ERROR_PREFIX, invoke, one_blas_thread, short_capture
+from badinput_tools import ERROR_PREFIX, invoke, short_capture
 from capturetools import gentle_trajectory, witnessed
 
 from guardid.commands import outputs
@@ -46,8 +46,7 @@ def _one_error(res, code: int, *words) -> str:
 
 @pytest.fixture(scope="module")
 def a_run(tmp_path_factory):
-    with one_blas_thread():
-        return short_capture(tmp_path_factory.mktemp("outputs"), seconds=10)
+    return short_capture(tmp_path_factory.mktemp("outputs"), seconds=10)
 
 
 class FullDisk:
@@ -86,13 +85,11 @@ def test_identify_on_a_full_disk_is_one_line_and_leaves_nothing(tmp_path, a_run,
     """Was: a traceback after the whole fit and a zero-byte params.yaml."""
     monkeypatch.setattr(outputs, "open", FullDisk(100), raising=False)
     out = tmp_path / "params.yaml"
-    with one_blas_thread():
-        res = invoke("identify", a_run, "--method", "ls", "-o", out)
+    res = invoke("identify", a_run, "--method", "ls", "-o", out)
     _one_error(res, 2, "-o", "params.yaml", "cannot write", "No space left on device")
     assert _files(tmp_path) == {}  # no params.yaml, no temporary file
     out.write_text("kept\n")  # an existing file, replaced only when complete
-    with one_blas_thread():
-        res = invoke("identify", a_run, "--method", "ls", "-o", out, "--force")
+    res = invoke("identify", a_run, "--method", "ls", "-o", out, "--force")
     _one_error(res, 2, "No space left on device")
     assert _files(tmp_path) == {"params.yaml": b"kept\n"}
 
@@ -352,13 +349,12 @@ def test_cv_with_an_output_is_refused_before_any_work(tmp_path, a_run):
     """identify --cv prints the held-out table only: -o / --plot / --report with it were
     accepted and silently never written (exit 0, no file)."""
     out = tmp_path / "p.yaml"
-    with one_blas_thread():
-        other = tmp_path / "seed5.csv"  # a second run of the same robot
-        traj = Path(a_run).parent / "traj.yaml"
-        res = invoke("capture", "--port", "sim://guard?seed=5", "--trajectory", traj,
-                     "--duration", 10, "--quiet", "-o", other)  # fmt: skip
-        assert res.exit_code == 0, res.output
-        res = invoke("identify", "--cv", a_run, other, "--method", "ls", "-o", out)
+    other = tmp_path / "seed5.csv"  # a second run of the same robot
+    traj = Path(a_run).parent / "traj.yaml"
+    res = invoke("capture", "--port", "sim://guard?seed=5", "--trajectory", traj,
+                 "--duration", 10, "--quiet", "-o", other)  # fmt: skip
+    assert res.exit_code == 0, res.output
+    res = invoke("identify", "--cv", a_run, other, "--method", "ls", "-o", out)
     _one_error(res, 2, "--cv", "-o")
     assert not out.exists() and "held-out run" not in res.stdout
 
@@ -367,8 +363,7 @@ def test_cv_with_an_output_is_refused_before_any_work(tmp_path, a_run):
 def test_an_empty_output_name_is_refused(tmp_path, a_run, option):
     """`-o "$OUT"` with an empty $OUT: identify ran, exit 0, and wrote nothing (an empty
     name was taken as no output); now one line before any work, and nothing written."""
-    with one_blas_thread():
-        res = invoke("identify", a_run, "--method", "ls", option, "")
+    res = invoke("identify", a_run, "--method", "ls", option, "")
     _one_error(res, 2, option, "empty file name")
     assert "parameter" not in res.stdout  # refused before the fit
     assert _files(tmp_path) == {}

@@ -18,10 +18,6 @@ from guardid.estimators.ls import _anova_sums, _common_variances
 from guardid.identify.rows import period_groups
 from guardid.identify.runs import load_run, trajectory_period
 
-pytestmark = pytest.mark.usefixtures(
-    "blas_one_thread"
-)  # many small fits: OpenBLAS threads only spin
-
 PERIODS, PHASES = 12, 30  # rows: 12 periods of 30 phases
 
 

@@ -9,8 +9,8 @@ import pytest
 import yaml
 from badinput_tools import invoke
 
-# the guard robot, its counts per radian by hand, BLAS on one thread (an autouse fixture)
-from test_replay import COUNTS_PER_RAD, GUARD, _one_blas_thread  # noqa: F401
+# the guard robot and its counts per radian by hand
+from test_replay import COUNTS_PER_RAD, GUARD
 
 
 def test_statistics_by_hand():

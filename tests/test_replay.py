@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from badinput_tools import ERROR_PREFIX, invoke, one_blas_thread
+from badinput_tools import ERROR_PREFIX, invoke
 
 from guardid.robot import load_robot
 
@@ -15,13 +15,6 @@ GUARD = load_robot("guard")
 # encoder counts per joint radian, by hand from guard.yaml: 48 counts per motor turn (a
 # 12-slot disc decoded x4) times the gear (500, 1000)
 COUNTS_PER_RAD = np.array([48 * 500, 48 * 1000]) / (2 * math.pi)
-
-
-@pytest.fixture(autouse=True)
-def _one_blas_thread():
-    """Many small solves: BLAS on one thread (see badinput_tools.one_blas_thread)."""
-    with one_blas_thread():
-        yield
 
 
 def log_columns(path) -> dict[str, np.ndarray]:

@@ -19,8 +19,6 @@ from guardid.reproduce import (
     seed001_table1,
 )
 
-pytestmark = pytest.mark.usefixtures("blas_one_thread")
-
 
 @pytest.fixture(scope="module")
 def table1(seed001_table1_report):
