@@ -21,6 +21,7 @@ conditioning resolved on the measured log; the captures are shared.
 
     python bench/bench_bias_sources.py [--seeds 6] [--duration 60] [--method ls]
                                        [--excitations default,tracking] [--fixed-phase]
+                                       [--robot guard] [--port-options OPTS]
                                        [--cutoff HZ] [--equations momentum,acceleration]
 """
 
@@ -66,16 +67,17 @@ def _cli(*args) -> None:
 
 
 def capture_with_truth(traj: Path, seed: int, duration: float, log: Path, phase: bool = True,
-                       port: str | None = None):  # fmt: skip
+                       port: str | None = None, robot: str = "guard"):  # fmt: skip
     """Capture ``log``; return (run, true q (N, 2) [rad], true current (N, 2) [A]).
     ``phase``: the seed also places the start pose within an encoder count (``phase=1``);
-    ``port``: other fake-port options instead (e.g. ``start=50&supply=0.02``)."""
+    ``port``: other fake-port options instead (e.g. ``start=50&supply=0.02``); ``robot``:
+    the simulated robot (a name or a YAML path)."""
     _TRUTH.clear()
     plant_module.Plant.step_sensors = lambda self, u: _recording_step(self, u)
     try:
-        port = f"sim://guard?seed={seed}" + (f"&{port}" if port else "&phase=1" if phase else "")
+        port = f"sim://{robot}?seed={seed}" + (f"&{port}" if port else "&phase=1" if phase else "")
         _cli("capture", "--trajectory", str(traj), "--duration", f"{duration:g}",
-             "--port", port, "--quiet", "--force", "-o", str(log))  # fmt: skip
+             "--robot", robot, "--port", port, "--quiet", "--force", "-o", str(log))  # fmt: skip
     finally:
         plant_module.Plant.step_sensors = _STEP
     truth = np.array(_TRUTH)
@@ -102,8 +104,14 @@ def main() -> None:
         action="store_true",
         help="leave phase=1 out: every seed starts at the same encoder phase",
     )
+    ap.add_argument("--robot", default="guard", help="robot name or YAML path (default guard)")
+    ap.add_argument(
+        "--port-options",
+        default=None,
+        help="fake-port options in place of phase=1, e.g. start=50&supply=0.02",
+    )
     a = ap.parse_args()
-    desc = load_robot("guard")
+    desc = load_robot(a.robot)
     model = build_model(desc)
     truth = dict(zip(model.base.names, model.base.values(model.params), strict=True))
     m = a.method
@@ -111,13 +119,14 @@ def main() -> None:
         work = Path(tmp)
         for exc in a.excitations.split(","):
             traj = work / f"traj_{exc}.yaml"
-            _cli("excite", "--robot", "guard", "-o", str(traj), *EXCITATIONS[exc])
+            _cli("excite", "--robot", a.robot, "-o", str(traj), *EXCITATIONS[exc])
             equations = a.equations.split(",")
             z: dict[str, dict[str, list]] = {eq: {} for eq in equations}
             for seed in range(a.seeds):
                 run, q_true, i_true = capture_with_truth(traj, seed, a.duration,
                                                          work / f"{exc}_{seed}.csv",
-                                                         not a.fixed_phase)  # fmt: skip
+                                                         not a.fixed_phase, a.port_options,
+                                                         a.robot)  # fmt: skip
                 for eq in equations:
                     given = ConditioningOptions(cutoff_hz=a.cutoff, equation=eq)
                     ref = identify([run], desc, IdentifyOptions(methods=(m,), conditioning=given))

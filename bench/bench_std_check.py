@@ -32,9 +32,11 @@ short ones first). Not in "all" (outside the tuned sets): fast120, fast600, fast
 (--base-freq 0.25 --harmonics 5), sines600, sines1200, and coarse60, coarse300, coarse1200
 (the default excitation on bench/robots/guard_coarse.yaml: the guard with an encoder four
 times coarser, 12 counts per motor revolution). Any of default, tracking, slow, schroeder,
-sines, fast, modified, coarse, reseeded (excite --seed 7), small (--margin 0.3 --start
-0,12.5) or longperiod (--base-freq 0.05) followed by a length in seconds is a set as well
-(modified1200, tracking300, coarse600, reseeded60: lengths and excitations nobody named).
+sines, fast, modified, coarse, variant (the default excitation on
+bench/robots/guard_variant.yaml), variantschroeder (--kind schroeder on it), reseeded (excite
+--seed 7), small (--margin 0.3 --start 0,12.5) or longperiod (--base-freq 0.05) followed by a
+length in seconds is a set as well (modified1200, tracking300, coarse600, variant60,
+reseeded60: lengths, excitations and robots nobody named).
 """
 
 from __future__ import annotations
@@ -79,6 +81,7 @@ for _length in (300, 1200):
     for _name in ("default", "schroeder"):
         SETS[f"{_name}{_length}"] = Set(_EXCITATIONS[_name], float(_length))
 COARSE = MODIFIED.parent / "guard_coarse.yaml"
+VARIANT = MODIFIED.parent / "guard_variant.yaml"
 _FAST = ("--base-freq", "0.25", "--harmonics", "5")
 EXTRA_SETS: dict[str, Set] = {
     **{f"fast{n}": Set(_FAST, float(n)) for n in (120, 600, 1200)},
@@ -92,6 +95,8 @@ _FAMILIES: dict[str, Set] = {
     "fast": Set(_FAST, 0.0),
     "modified": Set((), 0.0, str(MODIFIED)),
     "coarse": Set((), 0.0, str(COARSE)),
+    "variant": Set((), 0.0, str(VARIANT)),
+    "variantschroeder": Set(_EXCITATIONS["schroeder"], 0.0, str(VARIANT)),
     "reseeded": Set(("--seed", "7"), 0.0),
     "small": Set(("--margin", "0.3", "--start", "0,12.5"), 0.0),
     "longperiod": Set(("--base-freq", "0.05"), 0.0),
@@ -100,7 +105,10 @@ _FAMILIES: dict[str, Set] = {
 tracking300, coarse600): the same excitation and robot at a length nobody named. reseeded
 (``excite --seed 7``: another optimised trajectory), small (``--margin 0.3 --start
 0,12.5``: 30 % inside the joint limits, about the tilt's middle) and longperiod
-(``--base-freq 0.05``: a 20 s period) are excitations no set names."""
+(``--base-freq 0.05``: a 20 s period) are excitations no set names; variant is the default
+excitation on bench/robots/guard_variant.yaml, a robot no default was tuned on (PID every
+10 ms, other motors, gears, encoders, current noise, friction and masses, the arm's COM off
+its plane), variantschroeder the schroeder excitation on it."""
 
 
 def find_set(name: str) -> Set | None:

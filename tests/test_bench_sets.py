@@ -33,6 +33,8 @@ def test_named_sets_are_themselves(std_check):
         ("modified1200", (), 1200.0, "guard_modified.yaml"),
         ("tracking300", ("--base-freq", "0.2", "--harmonics", "3"), 300.0, "guard"),
         ("coarse2400", (), 2400.0, "guard_coarse.yaml"),
+        ("variant300", (), 300.0, "guard_variant.yaml"),
+        ("variantschroeder60", ("--kind", "schroeder"), 60.0, "guard_variant.yaml"),
         ("schroeder45", ("--kind", "schroeder"), 45.0, "guard"),
         ("fast90", ("--base-freq", "0.25", "--harmonics", "5"), 90.0, "guard"),
         ("reseeded60", ("--seed", "7"), 60.0, "guard"),
@@ -52,3 +54,21 @@ def test_a_family_at_any_length(std_check, name, excite, seconds, robot):
 )
 def test_not_a_set(std_check, name):
     assert std_check.find_set(name) is None
+
+
+def test_the_bench_robots_load_and_say_what_their_headers_say(std_check):
+    """The Monte Carlo's robots are valid descriptions, and differ from the guard where their
+    comments say (a robot the sets were meant to take away from the guard's defaults)."""
+    from guardid.robot import load_robot
+
+    guard = load_robot("guard")
+    variant = load_robot(str(std_check.VARIANT))
+    assert (guard.sample_period, variant.sample_period) == (0.015, 0.010)
+    gears = [j.drive.gear_ratio for j in variant.joints]
+    counts = [j.encoder.counts_per_rev for j in variant.joints]
+    assert gears == [300, 800] and counts == [64, 64]
+    assert variant.links[1].com[2] == 0.03 and variant.links[1].inertia[0, 1] == 0.002
+    coarse = load_robot(str(std_check.COARSE))
+    assert [j.encoder.counts_per_rev for j in coarse.joints] == [12, 12]
+    modified = load_robot(str(std_check.MODIFIED))
+    assert modified.joints[0].drive.gear_ratio == 400

@@ -8,6 +8,8 @@ YAML's documented closed form. flexlink is not a rigid serial chain: not applica
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -15,7 +17,13 @@ import pytest
 from guardid.dynamics import build_model
 from guardid.robot import load_robot
 
-CHAINS = ("guard", "planar2", "dfki_double_pendulum")
+VARIANT = str(Path(__file__).resolve().parents[1] / "bench" / "robots" / "guard_variant.yaml")
+CHAINS = (
+    "guard",
+    "planar2",
+    "dfki_double_pendulum",
+    pytest.param(VARIANT, id="guard_variant"),  # the Monte Carlo's robot with a COM off-plane
+)
 
 
 def _rx(a):
