@@ -18,12 +18,12 @@ from guardid.dynamics import build_model
 from guardid.robot import load_robot
 
 VARIANT = str(Path(__file__).resolve().parents[1] / "bench" / "robots" / "guard_variant.yaml")
-CHAINS = (
-    "guard",
-    "planar2",
-    "dfki_double_pendulum",
-    pytest.param(VARIANT, id="guard_variant"),  # the Monte Carlo's robot with a COM off-plane
-)
+CHAINS = ("guard", "planar2", "dfki_double_pendulum", VARIANT)
+"""Shipped chains and bench/bench_std_check.py's variant robot (its arm's COM off-plane)."""
+
+
+def _name(robot: str) -> str:
+    return Path(robot).stem
 
 
 def _rx(a):
@@ -122,7 +122,7 @@ def perturbed(desc, seed):
     return replace(desc, links=tuple(links))
 
 
-@pytest.mark.parametrize("robot", CHAINS)
+@pytest.mark.parametrize("robot", CHAINS, ids=_name)
 @pytest.mark.parametrize("seed", [0, 1])
 def test_inverse_dynamics_matches_pinocchio(robot, seed):
     desc = load_robot(robot) if seed == 0 else perturbed(load_robot(robot), seed)
@@ -167,7 +167,7 @@ def _standard_to_pin(desc):
     return t
 
 
-@pytest.mark.parametrize("robot", CHAINS)
+@pytest.mark.parametrize("robot", CHAINS, ids=_name)
 def test_regressor_and_base_parameters_match_pinocchio(robot):
     desc = load_robot(robot)
     model = build_model(desc)

@@ -4,6 +4,8 @@ linearity, its replicas against a capture of the simulated robot, the command's 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import yaml
@@ -163,3 +165,62 @@ def test_supply_measured_from_the_log(tmp_path, noise_free_replay):
     assert found.ripple == pytest.approx(0.02, rel=0.15)
     nominal = measured_supply(load_run(noise_free_replay["yaml"]), GUARD)
     assert nominal.level == pytest.approx(1.0, abs=0.003) and nominal.ripple < 0.003
+
+
+VARIANT = Path(__file__).resolve().parents[1] / "bench" / "robots" / "guard_variant.yaml"
+
+
+@pytest.fixture(scope="module")
+def far_start_capture(tmp_path_factory):
+    """30 s of the Schroeder excitation on bench/robots/guard_variant.yaml (its first
+    setpoint 4 and 10 deg from the rest pose the capture starts at, so the PID starts
+    saturated): the log and its robot."""
+    work = tmp_path_factory.mktemp("far_start")
+    traj, log = work / "traj.yaml", work / "log.csv"
+    assert invoke("excite", "--robot", VARIANT, "--kind", "schroeder", "-o", traj).exit_code == 0
+    port = f"sim://{VARIANT}?seed=12000&start=50&supply=0.02&ripple=0.01"
+    res = invoke("capture", "--trajectory", traj, "--robot", VARIANT, "--port", port,
+                 "--duration", "30", "--quiet", "-o", log)  # fmt: skip
+    assert res.exit_code == 0, res.stderr
+    return log
+
+
+def test_replica_starts_as_the_log_in_identify(far_start_capture):
+    """What identify keeps of a log for the bootstrap (``_lean``) starts the replica's PID
+    as the firmware had it: the replica, simulated with the robot's own parameters, follows
+    the logged angles (within 1 deg on each joint; without the first rows' counts its tilt
+    sat on the -15 deg stop, 25 deg off)."""
+    from guardid.commands.identify import _lean
+    from guardid.identify.prepare import current_on_adc_levels
+    from guardid.identify.runs import load_run
+    from guardid.replay import start_of
+    from guardid.robot import load_robot
+    from guardid.uncertainty.replicas import replica_run, simulated_values
+
+    robot = load_robot(str(VARIANT))
+    run = current_on_adc_levels(load_run(far_start_capture), robot)
+    first_gap = np.degrees(np.abs(run.setpoint[0] - run.q[0]))
+    assert first_gap.max() > 3.0  # the case: the first setpoint far from the start
+    kept = [
+        _lean(run, robot, ("wls",), None, bootstrap=True),
+        _lean(run, robot, ("wls", "iv"), None),
+        _lean(run, robot, ("wls",), "report.html"),
+    ]
+    for lean in kept:
+        assert start_of(lean, robot)[3] is not None  # the first rows' counts and voltages
+        truth = simulated_values(robot, (), ())  # the YAML's base parameters
+        rep = replica_run(lean, robot, truth, [0.5, 0.5])
+        off = np.degrees(np.abs(rep.q - run.q)).max(axis=0)
+        assert np.all(off < 1.0), off
+
+
+def test_identify_bootstrap_runs_on_a_log_starting_far_from_its_setpoint(
+    far_start_capture, tmp_path
+):
+    out = tmp_path / "p.yaml"
+    res = invoke("identify", far_start_capture, "--robot", VARIANT, "--method", "wls",
+                 "--quantisation-bootstrap", "2", "-o", out)  # fmt: skip
+    assert res.exit_code == 0, res.stderr
+    assert "cannot run" not in res.stderr
+    entry = yaml.safe_load(out.read_text())["methods"]["wls"]["quantisation_bootstrap"]
+    assert entry["replicas"] == 2
