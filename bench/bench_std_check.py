@@ -22,7 +22,7 @@ std stays within in 95 % of checks at that seed count (:func:`chance_bands`; at 
     nice -n 10 python bench/bench_std_check.py [--sets default60,schroeder1200:20 | all]
         [--seeds 40] [--first-seed 5000] [--jobs 2] [--methods wls] [--keep DIR [--reuse]
         [--reuse-params]] [--capture-only] [--port-options start=50&supply=0.02&ripple=0.01]
-        [--cutoff HZ] [--every-tick | --spaced-rows]
+        [--cutoff HZ] [--every-tick | --spaced-rows] [--quantisation-bootstrap K]
 
 Sets: default60, tracking60 (--base-freq 0.2 --harmonics 3), slow60 (--base-freq 0.15
 --harmonics 4), schroeder60 (--kind schroeder), sines60 (--kind sines), modified60 (the
@@ -351,6 +351,8 @@ def main() -> None:
     ap.add_argument("--every-tick", action="store_true", help="identify --every-tick")
     ap.add_argument("--spaced-rows", action="store_true",
                     help="identify --spaced-rows (the rows of before 2026-11-27)")  # fmt: skip
+    ap.add_argument("--quantisation-bootstrap", type=int, default=0, metavar="K",
+                    help="identify --quantisation-bootstrap K (default: off)")  # fmt: skip
     a = ap.parse_args()
     wanted = [w.partition(":") for w in (list(SETS) if a.sets == "all" else a.sets.split(","))]
     known = {n: find_set(n) for n, _, _ in wanted}
@@ -366,7 +368,9 @@ def main() -> None:
         (("--cutoff", f"{a.cutoff:g}") if a.cutoff else ())
         + (("--every-tick",) if a.every_tick else ())
         + (("--spaced-rows",) if a.spaced_rows else ())
-    )
+        + (("--quantisation-bootstrap", str(a.quantisation_bootstrap))
+           if a.quantisation_bootstrap else ())
+    )  # fmt: skip
     summary: list[str] = []
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(a.keep) if a.keep else Path(tmp)

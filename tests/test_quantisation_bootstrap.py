@@ -188,8 +188,10 @@ def far_start_capture(tmp_path_factory):
 def test_replica_starts_as_the_log_in_identify(far_start_capture):
     """What identify keeps of a log for the bootstrap (``_lean``) starts the replica's PID
     as the firmware had it: the replica, simulated with the robot's own parameters, follows
-    the logged angles (within 1 deg on each joint; without the first rows' counts its tilt
-    sat on the -15 deg stop, 25 deg off)."""
+    the logged angles (within 1 deg on each joint). Without the first rows' counts the
+    replica starts on a wrong integral and is several degrees off in its first seconds (8
+    deg on a 60 s log of the same seed; simulated with a poorly conditioned fit's estimate,
+    its tilt fell onto the -15 deg stop and the bootstrap could not run)."""
     from guardid.commands.identify import _lean
     from guardid.identify.prepare import current_on_adc_levels
     from guardid.identify.runs import load_run
