@@ -56,9 +56,10 @@ def test_not_a_set(std_check, name):
     assert std_check.find_set(name) is None
 
 
-def test_the_bench_robots_load_and_say_what_their_headers_say(std_check):
-    """The Monte Carlo's robots are valid descriptions, and differ from the guard where their
-    comments say (a robot the sets were meant to take away from the guard's defaults)."""
+def test_the_bench_robots_load_and_differ_from_the_guard(std_check):
+    """The Monte Carlo's robots are valid descriptions, and differ from the guard in the
+    headline changes their headers list (the controller rate, gears, encoders, the arm's
+    COM off its plane; the coarse encoder; the modified pan gear)."""
     from guardid.robot import load_robot
 
     guard = load_robot("guard")

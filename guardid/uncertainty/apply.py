@@ -21,14 +21,16 @@ def apply_bootstrap(result, runs, description, identify_options, options, progre
         return "no method with a covariance (wls or ls) among --method"
     if any(r.torque for r in runs):
         return "the effort is measured torque, not a guardid log's motor current"
+    fit = result.results[method]
     try:
         bs = quantisation_bootstrap(runs, description, result, method, options,
                                     identify_options, progress)  # fmt: skip
+        cov = bs.covariance(fit.cov)
     except GuardidError as exc:
         return str(exc).removeprefix("replica: ")
-    fit = result.results[method]
+    except np.linalg.LinAlgError:
+        return "the replicas' errors give no covariance"
     before = np.diag(fit.cov).copy()
-    cov = bs.covariance(fit.cov)
     fit.theta, fit.cov = bs.corrected(fit.theta), cov
     fit.std = np.sqrt(np.diag(cov))
     fit.rel_std_pct = 100.0 * fit.std / np.maximum(np.abs(fit.theta), 1e-300)

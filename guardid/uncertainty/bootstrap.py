@@ -84,6 +84,7 @@ def quantisation_bootstrap(
     (ratio: the bias's largest standard error over the run's std, NaN before 2 replicas).
     ConfigError when a run has no setpoints or the robot no ``pid:``; GuardidError when
     the estimate cannot be simulated."""
+    from guardid.errors import GuardidError
     from guardid.identify.pipeline import IdentifyOptions, identify
     from guardid.replay import check_replayable
     from guardid.uncertainty.replicas import replica_run, simulated_values
@@ -106,8 +107,12 @@ def quantisation_bootstrap(
         replicas = [replica_run(r, description, values, ph, s, int(z))
                     for r, ph, s, z in zip(runs, phases, supplies, seeds, strict=True)]  # fmt: skip
         own = identify(replicas, description, fit_options).results[method]
-        errors.append(np.asarray(own.theta, dtype=float) - theta)
-        covs.append(np.asarray(own.cov, dtype=float))
+        error, cov = np.asarray(own.theta, dtype=float) - theta, np.asarray(own.cov, dtype=float)
+        if not (np.all(np.isfinite(error)) and np.all(np.isfinite(cov))):
+            raise GuardidError(f"replica {k + 1}: its fit is not finite (the closed loop "
+                               "simulated with the estimate does not move as the log)")  # fmt: skip
+        errors.append(error)
+        covs.append(cov)
         ratio = float("nan")
         if len(errors) >= 2:
             se = np.std(errors, axis=0, ddof=1) / np.sqrt(len(errors))
