@@ -229,11 +229,23 @@ def test_identify_bootstrap_runs_on_a_log_starting_far_from_its_setpoint(
     assert np.all(np.isfinite(bias)) and np.all(np.abs(bias) < 3.0 * std), bias / std
 
 
+def _bootstrap_cannot_run(log, tmp_path, why):
+    """identify --quantisation-bootstrap 2 on ``log``: exit 0, one warning line saying
+    ``why``, no traceback, the estimate written without the bootstrap."""
+    out = tmp_path / "p.yaml"
+    res = invoke("identify", log, "--robot", VARIANT, "--method", "wls",
+                 "--quantisation-bootstrap", "2", "-o", out)  # fmt: skip
+    assert res.exit_code == 0, res.stderr
+    lines = [x for x in res.stderr.splitlines() if "quantisation-bootstrap" in x]
+    assert len(lines) == 1 and "cannot run" in lines[0] and why in lines[0], res.stderr
+    assert "Traceback" not in res.stderr
+    assert "quantisation_bootstrap" not in yaml.safe_load(out.read_text())["methods"]["wls"]
+
+
 def test_identify_bootstrap_a_replica_fit_not_finite_one_line(
     far_start_capture, tmp_path, monkeypatch
 ):
-    """A replica whose fit is not finite (a closed loop that does not move as the log):
-    one line naming the replica, exit 0, the estimate written without the bootstrap."""
+    """A replica whose fit is not finite (a closed loop that does not move as the log)."""
     import guardid.identify.pipeline as pipeline
 
     real = pipeline.identify
@@ -246,28 +258,15 @@ def test_identify_bootstrap_a_replica_fit_not_finite_one_line(
         return result
 
     monkeypatch.setattr(pipeline, "identify", one_nan)
-    out = tmp_path / "p.yaml"
-    res = invoke("identify", far_start_capture, "--robot", VARIANT, "--method", "wls",
-                 "--quantisation-bootstrap", "2", "-o", out)  # fmt: skip
-    assert res.exit_code == 0, res.stderr
-    lines = [x for x in res.stderr.splitlines() if "quantisation-bootstrap" in x]
-    assert len(lines) == 1 and "replica 1: its fit is not finite" in lines[0], res.stderr
-    assert "Traceback" not in res.stderr
-    assert "quantisation_bootstrap" not in yaml.safe_load(out.read_text())["methods"]["wls"]
+    _bootstrap_cannot_run(far_start_capture, tmp_path, "replica 1: its fit is not finite")
 
 
 def test_identify_bootstrap_no_covariance_one_line(far_start_capture, tmp_path, monkeypatch):
-    """The replicas' covariance failing to decompose: one line, exit 0, no bootstrap."""
+    """The replicas' covariance failing to decompose (a LinAlgError)."""
     from guardid.uncertainty.bootstrap import QuantisationBootstrap
 
     def no_eigen(self, cov):
         raise np.linalg.LinAlgError("Eigenvalues did not converge")
 
     monkeypatch.setattr(QuantisationBootstrap, "covariance", no_eigen)
-    out = tmp_path / "p.yaml"
-    res = invoke("identify", far_start_capture, "--robot", VARIANT, "--method", "wls",
-                 "--quantisation-bootstrap", "2", "-o", out)  # fmt: skip
-    assert res.exit_code == 0, res.stderr
-    lines = [x for x in res.stderr.splitlines() if "quantisation-bootstrap" in x]
-    assert len(lines) == 1 and "give no covariance" in lines[0], res.stderr
-    assert "quantisation_bootstrap" not in yaml.safe_load(out.read_text())["methods"]["wls"]
+    _bootstrap_cannot_run(far_start_capture, tmp_path, "give no covariance")
