@@ -135,14 +135,20 @@ def test_identify_bootstrap_cannot_run_one_line(gap_guard_captures, tmp_path):
     foreign = ("--robot", "guard", "--columns",
                "time=time_s,q1=q_pan_rad,q2=q_tilt_rad,i1=i_pan_A,i2=i_tilt_A")  # fmt: skip
     for extra, why in ((foreign, "no setpoints"), (("--robot", robot), "no pid")):
-        out = tmp_path / f"p{len(extra)}.yaml"
-        res = invoke("identify", log, "--method", "wls", "--quantisation-bootstrap", "3", "-o",
-                     out, *extra)  # fmt: skip
-        assert res.exit_code == 0, res.stderr
-        lines = [x for x in res.stderr.splitlines() if "quantisation-bootstrap" in x]
-        assert len(lines) == 1 and "cannot run" in lines[0] and why in lines[0]
-        assert "Traceback" not in res.stderr
-        assert "quantisation_bootstrap" not in yaml.safe_load(out.read_text())["methods"]["wls"]
+        _bootstrap_cannot_run(log, tmp_path / f"p{len(extra)}.yaml", why, *extra, k="3")
+
+
+def _bootstrap_cannot_run(log, out, why, *extra, k="2"):
+    """identify --quantisation-bootstrap ``k`` on ``log`` (with ``extra`` options), written
+    to ``out``: exit 0, one warning line saying ``why``, no traceback, the estimate written
+    without the bootstrap."""
+    res = invoke("identify", log, "--method", "wls", "--quantisation-bootstrap", k, "-o", out,
+                 *extra)  # fmt: skip
+    assert res.exit_code == 0, res.stderr
+    lines = [x for x in res.stderr.splitlines() if "quantisation-bootstrap" in x]
+    assert len(lines) == 1 and "cannot run" in lines[0] and why in lines[0], res.stderr
+    assert "Traceback" not in res.stderr
+    assert "quantisation_bootstrap" not in yaml.safe_load(out.read_text())["methods"]["wls"]
 
 
 def test_supply_measured_from_the_log(tmp_path, noise_free_replay):
@@ -229,19 +235,6 @@ def test_identify_bootstrap_runs_on_a_log_starting_far_from_its_setpoint(
     assert np.all(np.isfinite(bias)) and np.all(np.abs(bias) < 3.0 * std), bias / std
 
 
-def _bootstrap_cannot_run(log, tmp_path, why):
-    """identify --quantisation-bootstrap 2 on ``log``: exit 0, one warning line saying
-    ``why``, no traceback, the estimate written without the bootstrap."""
-    out = tmp_path / "p.yaml"
-    res = invoke("identify", log, "--robot", VARIANT, "--method", "wls",
-                 "--quantisation-bootstrap", "2", "-o", out)  # fmt: skip
-    assert res.exit_code == 0, res.stderr
-    lines = [x for x in res.stderr.splitlines() if "quantisation-bootstrap" in x]
-    assert len(lines) == 1 and "cannot run" in lines[0] and why in lines[0], res.stderr
-    assert "Traceback" not in res.stderr
-    assert "quantisation_bootstrap" not in yaml.safe_load(out.read_text())["methods"]["wls"]
-
-
 def test_identify_bootstrap_a_replica_fit_not_finite_one_line(
     far_start_capture, tmp_path, monkeypatch
 ):
@@ -258,7 +251,8 @@ def test_identify_bootstrap_a_replica_fit_not_finite_one_line(
         return result
 
     monkeypatch.setattr(pipeline, "identify", one_nan)
-    _bootstrap_cannot_run(far_start_capture, tmp_path, "replica 1: its fit is not finite")
+    _bootstrap_cannot_run(far_start_capture, tmp_path / "p.yaml",
+                          "replica 1: its fit is not finite", "--robot", VARIANT)  # fmt: skip
 
 
 def test_identify_bootstrap_no_covariance_one_line(far_start_capture, tmp_path, monkeypatch):
@@ -269,4 +263,5 @@ def test_identify_bootstrap_no_covariance_one_line(far_start_capture, tmp_path, 
         raise np.linalg.LinAlgError("Eigenvalues did not converge")
 
     monkeypatch.setattr(QuantisationBootstrap, "covariance", no_eigen)
-    _bootstrap_cannot_run(far_start_capture, tmp_path, "give no covariance")
+    _bootstrap_cannot_run(far_start_capture, tmp_path / "p.yaml", "give no covariance",
+                          "--robot", VARIANT)  # fmt: skip
