@@ -17,6 +17,9 @@ from guardid.plant import make_plant
 from guardid.protocol import ENUMS, FrameParser
 from guardid.robot import load_robot
 
+VARIANT = Path(__file__).resolve().parents[1] / "bench" / "robots" / "guard_variant.yaml"
+"""A robot no default was tuned on (the guard's kinematics, other PID period, drives,
+encoders, friction and masses; its header says what differs)."""
 IDLE = ENUMS["mode"]["idle"]
 POSITION = ENUMS["mode"]["position"]
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 from badinput_tools import invoke, one_blas_thread
+from capturetools import VARIANT
 
 
 def made_once(tmp_path_factory, name: str, make) -> Path:
@@ -157,3 +158,21 @@ def noise_free_replay(tmp_path_factory) -> dict:
                      REPLAY_CAPTURE_S, "--quiet", "-o", out[key])  # fmt: skip
         assert res.exit_code == 0, res.output
     return out
+
+
+@pytest.fixture(scope="session")
+def far_start_capture(tmp_path_factory) -> Path:
+    """30 s of the Schroeder excitation on the variant robot (capturetools.VARIANT), its
+    first setpoint 4 and 10 deg from the rest pose the capture starts at, so the PID starts
+    saturated: the log (read only)."""
+
+    def make(d):
+        traj = d / "traj.yaml"
+        made = invoke("excite", "--robot", VARIANT, "--kind", "schroeder", "-o", traj)
+        assert made.exit_code == 0, made.stderr
+        port = f"sim://{VARIANT}?seed=12000&start=50&supply=0.02&ripple=0.01"
+        res = invoke("capture", "--trajectory", traj, "--robot", VARIANT, "--port", port,
+                     "--duration", "30", "--quiet", "-o", d / "log.csv")  # fmt: skip
+        assert res.exit_code == 0, res.stderr
+
+    return made_once(tmp_path_factory, "far_start", make) / "log.csv"

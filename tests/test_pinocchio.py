@@ -13,12 +13,12 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from capturetools import VARIANT
 
 from guardid.dynamics import build_model
 from guardid.robot import load_robot
 
-VARIANT = str(Path(__file__).resolve().parents[1] / "bench" / "robots" / "guard_variant.yaml")
-CHAINS = ("guard", "planar2", "dfki_double_pendulum", VARIANT)
+CHAINS = ("guard", "planar2", "dfki_double_pendulum", str(VARIANT))
 """Shipped chains and bench/bench_std_check.py's variant robot (its arm's COM off-plane)."""
 
 

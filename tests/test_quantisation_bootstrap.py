@@ -4,12 +4,11 @@ linearity, its replicas against a capture of the simulated robot, the command's 
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 import yaml
 from badinput_tools import invoke
+from capturetools import VARIANT
 
 # the guard robot and its counts per radian by hand
 from test_replay import COUNTS_PER_RAD, GUARD
@@ -173,24 +172,6 @@ def test_supply_measured_from_the_log(tmp_path, noise_free_replay):
     assert nominal.level == pytest.approx(1.0, abs=0.003) and nominal.ripple < 0.003
 
 
-VARIANT = Path(__file__).resolve().parents[1] / "bench" / "robots" / "guard_variant.yaml"
-
-
-@pytest.fixture(scope="module")
-def far_start_capture(tmp_path_factory):
-    """30 s of the Schroeder excitation on bench/robots/guard_variant.yaml (its first
-    setpoint 4 and 10 deg from the rest pose the capture starts at, so the PID starts
-    saturated): the log and its robot."""
-    work = tmp_path_factory.mktemp("far_start")
-    traj, log = work / "traj.yaml", work / "log.csv"
-    assert invoke("excite", "--robot", VARIANT, "--kind", "schroeder", "-o", traj).exit_code == 0
-    port = f"sim://{VARIANT}?seed=12000&start=50&supply=0.02&ripple=0.01"
-    res = invoke("capture", "--trajectory", traj, "--robot", VARIANT, "--port", port,
-                 "--duration", "30", "--quiet", "-o", log)  # fmt: skip
-    assert res.exit_code == 0, res.stderr
-    return log
-
-
 def test_replica_starts_as_the_log_in_identify(far_start_capture):
     """What identify keeps of a log for the bootstrap (``_lean``) starts the replica's PID
     as the firmware had it: the replica, simulated with the robot's own parameters, follows
@@ -198,10 +179,10 @@ def test_replica_starts_as_the_log_in_identify(far_start_capture):
     rows' counts the replica starts on a wrong integral and is several degrees off in its
     first seconds (8.5 deg here; simulated with a poorly conditioned fit's estimate, its
     tilt fell onto the -15 deg stop and the bootstrap could not run)."""
+    from guardid.closedloop.rows import start_of
     from guardid.commands.identify import _lean
     from guardid.identify.prepare import current_on_adc_levels
     from guardid.identify.runs import load_run
-    from guardid.replay import start_of
     from guardid.robot import load_robot
     from guardid.uncertainty.replicas import replica_run, simulated_values
 

@@ -42,7 +42,8 @@ the table labels their column, params.yaml marks ``std_honest: false``, and a wa
 def fit_closed_loop(method, A, y, rows, inputs, description, model, free, flags):
     """(estimate, warnings) of ``method`` ('iv' | 'didim') on the measured rows A (M, n, b'),
     y (M, n) of :class:`~guardid.identify.rows.Rows` ``rows``; ``inputs`` = (runs, ticks,
-    setpoints, voltages), one entry per run; starts from WLS.
+    setpoints, starts), one entry per run (``starts``: :func:`~guardid.closedloop.rows.start_of`
+    of each run); starts from WLS.
 
     Never raises for a simulation that diverges or a parameter set that cannot be simulated:
     the estimate is then marked not converged and one warning names the method, the run

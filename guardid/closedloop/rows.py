@@ -23,16 +23,21 @@ from guardid.closedloop.simulate import (
 from guardid.errors import GuardidError
 from guardid.identify.acceleration_run import condition_run
 
+START_ROWS = 40
+"""Rows after the first (0.6 s on the guard) whose reported voltages give the PID's
+integral at the first row [-]."""
+
 
 @dataclass
 class ClosedLoopRuns:
     """Per run: ``runs`` (t [s], q [rad], effort[, qd]) as given to identification,
-    ``ticks`` (N,), ``setpoints`` [rad] (N, n), ``voltages`` [V] (N, n) or None."""
+    ``ticks`` (N,), ``setpoints`` [rad] (N, n), ``starts`` the simulation's start
+    (:func:`start_of` of the run)."""
 
     runs: list
     ticks: list
     setpoints: list
-    voltages: list
+    starts: list
 
 
 def check_inputs(methods, description, setpoints, ticks) -> None:
@@ -105,19 +110,15 @@ def regressor_builder(data: ClosedLoopRuns, description, model, free, rows, flag
     used = replace(used, decimate=rows.cond.decimation)
     base = model.base.values(model.params)
     mask = rows.cond.mask
-    half_count = np.array([np.pi / (j.drive.gear_ratio * j.encoder.counts_per_rev)
-                           for j in description.joints])  # fmt: skip
-    starts = [start_state(run, tk, v, half_count) for run, tk, v in
-              zip(data.runs, data.ticks, data.voltages, strict=True)]  # fmt: skip
 
     def regressor_of(theta_free):
         theta = base.copy()
         theta[free] = theta_free
         parts = []
-        for k, (run, tk, sp, (q0, qd0, u0)) in enumerate(zip(data.runs, data.ticks, data.setpoints,
-                                                             starts, strict=True)):  # fmt: skip
+        for k, (run, tk, sp, start) in enumerate(zip(data.runs, data.ticks, data.setpoints,
+                                                     data.starts, strict=True)):  # fmt: skip
             try:
-                q_sim = simulate(description, model, theta, tk, sp, q0, qd0, u0)
+                q_sim = simulate(description, model, theta, tk, sp, *start)
             except (SimulationDiverged, NotSimulable) as exc:
                 raise RunDiverged(k + 1, len(data.runs), exc) from None
             t, _, effort, *_ = run
@@ -151,3 +152,28 @@ def start_state(run, ticks, voltage, half_count):
         # the row after was lost: the period before the first row is the closest output
         u0 = np.asarray(voltage)[1 if next_tick else 0]
     return q[0] + half_count, qd0, u0
+
+
+def start_of(run, description):
+    """(q0 [rad] (n,), qd0 [rad/s] (n,), u0 [V] (n,) or None, following or None): the first
+    row's state of ``run`` (a :class:`~guardid.log.Run`) as
+    :func:`~guardid.closedloop.simulate.simulate` takes it: :func:`start_state`, the velocity
+    to second order where three rows are one tick apart, and, where the run has its counts
+    and voltages, the counts and next voltages of its first rows one tick apart (at most
+    :data:`START_ROWS` + 1), from which the PID's integral at the first row is fitted.
+    Without them a log that starts far from its first setpoint (the PID saturated) starts
+    its simulation on a wrong integral: several degrees off the log in its first seconds."""
+    from guardid.plant.joints import joint_constants
+
+    cpr = np.array([jc.counts_per_rad for jc in joint_constants(description, True, True)])
+    q0, qd0, u0 = start_state((run.t, run.q, run.current), run.ticks, run.voltage, 0.5 / cpr)
+    steps = np.diff(np.asarray(run.ticks[: START_ROWS + 2], dtype=np.int64))
+    gaps = np.flatnonzero(steps != 1)
+    k = int(gaps[0]) if gaps.size else len(steps)  # rows whose next period the log reports
+    if k >= 2:  # three rows one tick apart: the velocity at the first, to second order
+        t, q = np.asarray(run.t, dtype=float), np.asarray(run.q, dtype=float)
+        qd0 = (-3.0 * q[0] + 4.0 * q[1] - q[2]) / (t[2] - t[0])
+    following = None
+    if run.voltage is not None and run.counts is not None and k >= 2:
+        following = (np.asarray(run.counts[:k], dtype=np.int64), np.asarray(run.voltage[1 : k + 1]))
+    return q0, qd0, u0, following

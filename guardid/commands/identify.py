@@ -86,19 +86,20 @@ def _load_all(logs, robot_opt, foreign):
 def _lean(run, description, methods, report_path, bootstrap=False):
     """``run`` without the columns this identify will not read, so they do not stay in
     memory (about 8 MB per hour of log and per column pair): ``counts`` once the log's
-    joints are in the robot's order, unless the quantisation bootstrap simulates the log
-    (its replicas' PID starts from the first rows' counts as the firmware had it,
-    :func:`guardid.replay.start_of`: without them a log that starts far from its first
-    setpoint starts the replica on a wrong integral); ``setpoint`` unless a closed-loop
-    method (iv, didim), the --report or the quantisation bootstrap asks for it."""
+    joints are in the robot's order, unless the log's closed loop is simulated (a
+    closed-loop method, iv or didim, or the quantisation bootstrap's replicas: their PID
+    starts from the first rows' counts as the firmware had it,
+    :func:`guardid.closedloop.rows.start_of`; without them a log that starts far from its
+    first setpoint starts the simulation on a wrong integral); ``setpoint`` unless the
+    closed loop is simulated or the --report asks for it."""
     from dataclasses import replace
 
     joints = getattr(description, "joints", None)
     drop = {}
     in_order = joints is not None and run.joint_names == tuple(j.name for j in joints)
-    if in_order and not bootstrap:
-        drop["counts"] = None
     closed_loop = bootstrap or {"iv", "didim"} & {m.lower() for m in methods}
+    if in_order and not closed_loop:
+        drop["counts"] = None
     if report_path is None and not closed_loop:
         drop["setpoint"] = None
     return replace(run, **drop) if drop else run

@@ -306,12 +306,14 @@ class _ClosedLoop(Method):
 
     def fit(self, rows):
         from guardid.closedloop import fit_closed_loop
+        from guardid.closedloop.rows import start_of
         from guardid.identify.rows import closed_loop_rows
 
         first = rows.rows.acceleration_rows is None
         own = closed_loop_rows(rows)  # the acceleration form (module docstring there)
         runs = [(r.t, r.q, r.current) for r in rows.runs]
-        per_run = [[getattr(r, k) for r in rows.runs] for k in ("ticks", "setpoint", "voltage")]
+        per_run = [[getattr(r, k) for r in rows.runs] for k in ("ticks", "setpoint")]
+        per_run.append([start_of(r, rows.description) for r in rows.runs])
         flags = (rows.options.in_current_units, rows.effort_is_torque)
         est, notes = fit_closed_loop(self.name, own.A, own.y, own, (runs, *per_run),
                                      rows.description, rows.model, rows.free, flags)  # fmt: skip

@@ -23,10 +23,6 @@ import numpy as np
 
 from guardid.errors import ConfigError, GuardidError
 
-START_ROWS = 40
-"""Rows after the first (0.6 s on the guard) whose reported voltages give the PID's
-integral at the first row [-]."""
-
 
 @dataclass(frozen=True)
 class ReplayScore:
@@ -67,29 +63,11 @@ def check_replayable(run, description, option: str = "--simulate") -> None:
         raise ConfigError(str(exc).replace("--method iv/didim", option)) from None
 
 
-def start_of(run, description):
-    """(q0 [rad] (n,), qd0 [rad/s] (n,), u0 [V] (n,) or None, following or None): the first
-    row's state as :func:`~guardid.closedloop.simulate.simulate` takes it."""
-    from guardid.closedloop.rows import start_state
-
-    half_count = 0.5 / counts_per_rad(description)
-    q0, qd0, u0 = start_state((run.t, run.q, run.current), run.ticks, run.voltage, half_count)
-    steps = np.diff(np.asarray(run.ticks[: START_ROWS + 2], dtype=np.int64))
-    gaps = np.flatnonzero(steps != 1)
-    k = int(gaps[0]) if gaps.size else len(steps)  # rows whose next period the log reports
-    if k >= 2:  # three rows one tick apart: the velocity at the first, to second order
-        t, q = np.asarray(run.t, dtype=float), np.asarray(run.q, dtype=float)
-        qd0 = (-3.0 * q[0] + 4.0 * q[1] - q[2]) / (t[2] - t[0])
-    following = None
-    if run.voltage is not None and run.counts is not None and k >= 2:
-        following = (np.asarray(run.counts[:k], dtype=np.int64), np.asarray(run.voltage[1 : k + 1]))
-    return q0, qd0, u0, following
-
-
 def replay(run, description, values: dict) -> np.ndarray:
     """Simulated joint angles [rad] (N, n) of ``run`` with base parameter ``values`` (name
     -> SI value): the simulated encoder's whole counts, as the log's angles are.
     NotSimulable / SimulationDiverged (GuardidError) when the set cannot be simulated."""
+    from guardid.closedloop.rows import start_of
     from guardid.closedloop.simulate import simulate
     from guardid.dynamics import build_model
 

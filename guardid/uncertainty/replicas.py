@@ -31,9 +31,10 @@ def replica_run(run, description, values: dict, phase_counts, supply=None, seed=
     current are the simulation's (the first row's voltage and current the log's).
     NotSimulable / SimulationDiverged (GuardidError) when ``values`` cannot be simulated;
     ConfigError when the log has no setpoints or the robot no ``pid:``."""
+    from guardid.closedloop.rows import start_of
     from guardid.closedloop.simulate import simulate
     from guardid.dynamics import build_model
-    from guardid.replay import check_replayable, counts_per_rad, start_of
+    from guardid.replay import check_replayable, counts_per_rad
 
     check_replayable(run, description, "replica")
     model = build_model(description)

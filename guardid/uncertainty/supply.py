@@ -55,8 +55,9 @@ def commanded_volts(run, description) -> np.ndarray:
     """(N - 1, n) [V]: the voltage the firmware commanded for each period between the
     first rows of ``run`` one tick apart (before the supply's factor), by its PID on the
     log's counts and setpoints."""
+    from guardid.closedloop.rows import start_of
     from guardid.closedloop.simulate import started_firmware
-    from guardid.replay import counts_per_rad, start_of
+    from guardid.replay import counts_per_rad
 
     ticks = np.asarray(run.ticks, dtype=np.int64)
     steps = np.flatnonzero(np.diff(ticks) != 1)
