@@ -253,8 +253,8 @@ def test_the_consistent_fit_of_the_python_api_reads_by_name_too(capture, tmp_pat
 def test_identify_keeps_only_the_columns_it_reads(capture):
     """The columns load_run copies are the file's (an independent parse with numpy), and
     identify drops counts once the joints are in the robot's order (kept when they must be
-    reordered and checked, and for the bootstrap, whose replicas start from them) and
-    setpoints unless iv, didim, --report or the bootstrap read them."""
+    reordered and checked, and for iv, didim and the bootstrap, whose simulations start
+    from them) and setpoints unless iv, didim, --report or the bootstrap read them."""
     from dataclasses import replace
 
     from guardid.commands.identify import _lean
@@ -271,9 +271,10 @@ def test_identify_keeps_only_the_columns_it_reads(capture):
     guard = load_robot(shipped_path("guard"))
     lean = _lean(run, guard, ("ls", "wls", "rls", "hopfield"), None)
     assert lean.counts is None and lean.setpoint is None and lean.q is run.q
-    for kept in (_lean(run, guard, ("ls", "iv"), None), _lean(run, guard, ("ls",), "report.html")):
-        assert kept.setpoint is run.setpoint and kept.counts is None
-    boot = _lean(run, guard, ("ls",), None, bootstrap=True)
-    assert boot.setpoint is run.setpoint and boot.counts is run.counts
+    report = _lean(run, guard, ("ls",), "report.html")
+    assert report.setpoint is run.setpoint and report.counts is None
+    for simulated in (_lean(run, guard, ("ls", "iv"), None), _lean(run, guard, ("DIDIM",), None),
+                      _lean(run, guard, ("ls",), None, bootstrap=True)):  # fmt: skip
+        assert simulated.setpoint is run.setpoint and simulated.counts is run.counts
     other = replace(run, joint_names=run.joint_names[::-1])
     assert _lean(other, guard, ("ls",), None).counts is run.counts
