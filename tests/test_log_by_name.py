@@ -254,7 +254,8 @@ def test_identify_keeps_only_the_columns_it_reads(capture):
     """The columns load_run copies are the file's (an independent parse with numpy), and
     identify drops counts once the joints are in the robot's order (kept when they must be
     reordered and checked, and for iv, didim and the bootstrap, whose simulations start
-    from them) and setpoints unless iv, didim, --report or the bootstrap read them."""
+    from them) and setpoints unless iv, didim or the bootstrap read them (--report does
+    not)."""
     from dataclasses import replace
 
     from guardid.commands.identify import _lean
@@ -269,12 +270,10 @@ def test_identify_keeps_only_the_columns_it_reads(capture):
         want = raw[:, [names.index(group.format(j)) for j in run.joint_names]]
         assert np.array_equal(getattr(run, key), want), key
     guard = load_robot(shipped_path("guard"))
-    lean = _lean(run, guard, ("ls", "wls", "rls", "hopfield"), None)
+    lean = _lean(run, guard, ("ls", "wls", "rls", "hopfield"))
     assert lean.counts is None and lean.setpoint is None and lean.q is run.q
-    report = _lean(run, guard, ("ls",), "report.html")
-    assert report.setpoint is run.setpoint and report.counts is None
-    for simulated in (_lean(run, guard, ("ls", "iv"), None), _lean(run, guard, ("DIDIM",), None),
-                      _lean(run, guard, ("ls",), None, bootstrap=True)):  # fmt: skip
+    for simulated in (_lean(run, guard, ("ls", "iv")), _lean(run, guard, ("DIDIM",)),
+                      _lean(run, guard, ("ls",), bootstrap=True)):  # fmt: skip
         assert simulated.setpoint is run.setpoint and simulated.counts is run.counts
     other = replace(run, joint_names=run.joint_names[::-1])
-    assert _lean(other, guard, ("ls",), None).counts is run.counts
+    assert _lean(other, guard, ("ls",)).counts is run.counts

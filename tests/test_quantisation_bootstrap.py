@@ -190,7 +190,7 @@ def test_replica_starts_as_the_log_in_identify(far_start_capture):
     run = current_on_adc_levels(load_run(far_start_capture), robot)
     first_gap = np.degrees(np.abs(run.setpoint[0] - run.q[0]))
     assert first_gap.max() > 3.0  # the case: the first setpoint far from the start
-    lean = _lean(run, robot, ("wls",), None, bootstrap=True)
+    lean = _lean(run, robot, ("wls",), bootstrap=True)
     assert start_of(lean, robot)[3] is not None  # the first rows' counts and voltages
     truth = simulated_values(robot, (), ())  # the YAML's base parameters
     rep = replica_run(lean, robot, truth, [0.5, 0.5])

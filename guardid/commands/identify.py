@@ -83,7 +83,7 @@ def _load_all(logs, robot_opt, foreign):
     return runs, description
 
 
-def _lean(run, description, methods, report_path, bootstrap=False):
+def _lean(run, description, methods, bootstrap=False):
     """``run`` without the columns this identify will not read, so they do not stay in
     memory (about 8 MB per hour of log and per column pair): ``counts`` once the log's
     joints are in the robot's order, unless the log's closed loop is simulated (a
@@ -91,7 +91,7 @@ def _lean(run, description, methods, report_path, bootstrap=False):
     starts from the first rows' counts as the firmware had it,
     :func:`guardid.closedloop.rows.start_of`; without them a log that starts far from its
     first setpoint starts the simulation on a wrong integral); ``setpoint`` unless the
-    closed loop is simulated or the --report asks for it."""
+    closed loop is simulated (the --report does not read it)."""
     from dataclasses import replace
 
     joints = getattr(description, "joints", None)
@@ -100,7 +100,7 @@ def _lean(run, description, methods, report_path, bootstrap=False):
     closed_loop = bootstrap or {"iv", "didim"} & {m.lower() for m in methods}
     if in_order and not closed_loop:
         drop["counts"] = None
-    if report_path is None and not closed_loop:
+    if not closed_loop:
         drop["setpoint"] = None
     return replace(run, **drop) if drop else run
 
@@ -337,7 +337,7 @@ def identify(
         return
     from guardid.identify.prepare import current_on_adc_levels
 
-    runs = [_lean(r, description, methods, report_path, bootstrap_k > 0) for r in runs]
+    runs = [_lean(r, description, methods, bootstrap_k > 0) for r in runs]
     runs = [current_on_adc_levels(r, description, in_place=True) for r in runs]  # for all
     run = runs[0]
     forked = None  # the tracker's replay on another core while the batch fit runs
