@@ -74,7 +74,7 @@ def test_a_registered_estimator_is_in_the_help_and_in_params_yaml(registry, lift
     assert "numpy-lstsq" in method_names()
     shown = " ".join(cli("identify", "--help").output.split())
     assert "numpy-lstsq (numpy's least squares, for the test)" in shown
-    assert "bls (bounded: friction and rotor inertia >= 0)" in shown
+    assert "bls (bounded: WLS with friction and rotor inertia kept >= 0)" in shown
     out = tmp_path / "p.yaml"
     res = cli("identify", log, "--robot", robot, "--columns", COLUMNS, "--cutoff", "60",
               "--method", "ls,numpy-lstsq", "-o", out)  # fmt: skip

@@ -102,6 +102,55 @@ def test_negative_friction_is_flagged_and_bls_keeps_it_feasible():
     assert np.all(bls[lower] >= 0) and bls[k] == 0.0
 
 
+def _bounded_ls_by_active_sets(A, y, bounded):
+    """min ||A x - y|| subject to x[bounded] >= 0, by trying every set of bounds held at 0
+    (numpy lstsq on the other columns; the feasible solution of least residual)."""
+    best, best_rss = None, np.inf
+    for mask in range(2 ** len(bounded)):
+        held = [b for i, b in enumerate(bounded) if mask >> i & 1]
+        free = [k for k in range(A.shape[1]) if k not in held]
+        x = np.zeros(A.shape[1])
+        x[free] = np.linalg.lstsq(A[:, free], y, rcond=None)[0]
+        rss = float(np.sum((A @ x - y) ** 2))
+        if np.all(x[bounded] >= -1e-12) and rss < best_rss:
+            best, best_rss = x, rss
+    return best
+
+
+def test_bls_is_the_bounded_least_squares_with_wls_std():
+    """One output with white noise: WLS's covariance is s^2 (A^T A)^-1, so the nearest
+    point inside the bounds in its metric is the bounded least-squares solution, found here
+    by enumerating the active sets. The std is WLS's (the old BLS's formula at the bounded
+    solution gave a std 2-5x too small on the guard's momentum rows)."""
+    from guardid.estimators import WeightedLeastSquares
+    from guardid.identify.trust import BoundedLeastSquares
+
+    rng = np.random.default_rng(8)
+    A = rng.normal(size=(400, 4)) + 0.6 * rng.normal(size=(400, 1))  # correlated columns
+    truth = np.array([1.0, 0.0, 0.02, -0.5])  # 1, 2 bounded at 0 (friction-like)
+    y = A @ truth + 0.3 * rng.normal(size=400)
+    lower = np.array([-np.inf, 0.0, 0.0, -np.inf])
+    wls = WeightedLeastSquares().fit(A, y)
+    assert np.all(wls.theta_[1:3] < 0)  # the case: the unbounded fit breaks both bounds
+    bls = BoundedLeastSquares(lower).fit(A, y)
+    want = _bounded_ls_by_active_sets(A, y, [1, 2])
+    np.testing.assert_allclose(bls.theta_, want, atol=1e-9)
+    assert bls.active_.tolist() == [False, *(want[1:3] == 0.0), False] and bls.active_[1]
+    np.testing.assert_allclose(bls.std_, np.sqrt(np.diag(wls.cov_)), rtol=1e-12)
+
+
+def test_bls_inside_its_bounds_is_wls_with_its_error_model(gap_guard_captures):
+    """On a guard capture every friction parameter is well above 0: BLS is the verdict's
+    WLS, estimate and std (the rows' correlated errors and the encoder's rounding counted)."""
+    from guardid.identify.runs import load_run
+
+    run = load_run(gap_guard_captures[1])
+    r = identify([run], load_robot("guard"), IdentifyOptions(methods=("wls", "bls")))
+    wls, bls = r.results["wls"], r.results["bls"]
+    np.testing.assert_allclose(bls.theta, wls.theta, rtol=1e-12)
+    np.testing.assert_allclose(bls.std, wls.std, rtol=1e-12)
+
+
 def test_mass_matrix_from_base_parameters_matches_newton_euler_and_is_checked():
     d = load_robot("dfki_double_pendulum")
     m = build_model(d)

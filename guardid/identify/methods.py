@@ -206,12 +206,13 @@ class WLS(Method):
 
 @register("bls")
 class BLS(Method):
-    summary = "bounded: friction and rotor inertia >= 0"
+    summary = "bounded: WLS with friction and rotor inertia kept >= 0"
 
     def fit(self, rows):
         from guardid.identify.trust import BoundedLeastSquares, lower_bounds
 
-        return MethodFit.of(BoundedLeastSquares(lower_bounds(rows.names)).fit(rows.A, rows.y))
+        bls = BoundedLeastSquares(lower_bounds(rows.names), **rows.rows.error_model())
+        return MethodFit.of(bls.fit(rows.A, rows.y))
 
 
 @register("rls")

@@ -5,9 +5,13 @@ estimators whose fit is much worse than least squares' marked as not converged.
   reflected rotor inertia (Ia), and a mass matrix M(q) that is not positive definite at
   some sample of the data. M(q) is rebuilt from the base parameters through the regressor:
   column i of M(q) = Y(q, 0, e_i) theta - Y(q, 0, 0) theta (gravity and offsets cancel).
-* ``bls``: scipy's ``lsq_linear`` with lower bounds 0 on Fv, Fc, Fs and Ia (a bounded
-  least-squares fit that keeps them feasible); its standard deviations are least squares'
-  formula at the bounded solution (an approximation where a bound is active).
+* ``bls``: WLS with its error model (the rows' correlated and repeating errors, the
+  encoder's rounding removed: the verdict's fit), then, where it breaks a lower bound 0 on
+  Fv, Fc, Fs or Ia, the point inside the bounds nearest to it in its own covariance's metric
+  (min (theta - theta_w)^T C^-1 (theta - theta_w), theta >= lower: scipy's ``lsq_linear``
+  on the whitened problem; the bounded maximum-likelihood estimate under the fit's normal
+  approximation). Its covariance is WLS's: the projection onto a convex set that holds the
+  truth brings the estimate no further from it in that metric. Within the bounds it is WLS.
 * Not converged: an estimator whose in-sample stacked relative rms error exceeds
   :data:`NOT_CONVERGED_RATIO` x least squares' (and LS's plus 1 percentage point).
 """
@@ -37,31 +41,39 @@ def stacked_error(A, y, theta) -> float:
 
 
 class BoundedLeastSquares:
-    """Least squares with ``lower`` bounds (b,) (scipy.optimize.lsq_linear, columns scaled).
+    """WLS with ``lower`` bounds (b,) (module docstring); ``wls_options``: the keywords of
+    :class:`~guardid.estimators.WeightedLeastSquares` (the rows' error model).
 
-    Attributes after ``fit``: ``theta_``, ``std_``, ``rel_std_`` [%], ``active_`` (bool (b,),
-    a bound holds).
+    Attributes after ``fit``: ``theta_``, ``cov_`` (WLS's), ``std_``, ``rel_std_`` [%],
+    ``active_`` (bool (b,), a bound holds), ``wls_`` the unbounded fit.
     """
 
-    def __init__(self, lower):
+    def __init__(self, lower, **wls_options):
         self.lower = np.asarray(lower, dtype=float)
+        self.wls_options = wls_options
 
     def fit(self, A, y):
-        A3, y2 = as_blocks(A, y)
-        M = A3.reshape(-1, A3.shape[2])
-        v = y2.reshape(-1)
-        scale = np.sqrt(np.sum(M**2, axis=0))
-        scale[scale == 0] = 1.0
-        lo = np.where(np.isfinite(self.lower), self.lower * scale, -np.inf)
-        sol = lsq_linear(M / scale, v, bounds=(lo, np.full_like(lo, np.inf)), method="bvls")
-        self.theta_ = sol.x / scale
-        r = v - M @ self.theta_
-        dof = max(len(v) - len(self.theta_), 1)
-        cov = float(r @ r) / dof * np.linalg.pinv(M.T @ M)
-        self.std_ = np.sqrt(np.clip(np.diag(cov), 0, None))
-        self.rel_std_ = 100 * self.std_ / np.maximum(np.abs(self.theta_), 1e-300)
-        self.active_ = np.isfinite(self.lower) & (self.theta_ <= self.lower + 1e-12 * scale.max())
+        from guardid.estimators import WeightedLeastSquares
+
+        wls = self.wls_ = WeightedLeastSquares(**self.wls_options).fit(A, y)
+        theta, cov = np.asarray(wls.theta_, dtype=float), np.asarray(wls.cov_, dtype=float)
+        lower = np.where(np.isfinite(self.lower), self.lower, -np.inf)
+        if np.any(theta < lower):
+            theta = _nearest_inside(theta, cov, lower)
+        self.theta_, self.cov_, self.std_ = theta, cov, np.asarray(wls.std_, dtype=float)
+        self.rel_std_ = 100 * self.std_ / np.maximum(np.abs(theta), 1e-300)
+        self.active_ = np.isfinite(lower) & (theta <= lower)
         return self
+
+
+def _nearest_inside(theta, cov, lower) -> np.ndarray:
+    """argmin (x - theta)^T cov^-1 (x - theta) subject to x >= lower (b,)."""
+    vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
+    keep = vals > vals.max() * 1e-15
+    white = (vecs[:, keep] / np.sqrt(vals[keep])).T  # cov^-1/2 on its range
+    sol = lsq_linear(white, white @ theta, bounds=(lower, np.full_like(lower, np.inf)),
+                     method="bvls")  # fmt: skip
+    return np.maximum(sol.x, lower)  # on the bound exactly where it holds
 
 
 def mark_not_converged(results, ls) -> list[str]:
