@@ -10,6 +10,7 @@ import yaml
 from guardid.commands._types import POSITIVE
 from guardid.commands.outputs import force_option
 from guardid.errors import ConfigError, GuardidError, UntrustedResult
+from guardid.report.series import MAX_PLOT_POINTS
 
 
 def _robot_for(run, robot_opt):
@@ -244,7 +245,9 @@ _SPACED_ROWS_HELP = (
     "--plot",
     "plot_path",
     default=None,
-    help="Write a PNG report (matplotlib; an existing file only with --force).",
+    help="Write a PNG report: the torque fit and the online estimators over time, each line "
+    f"drawn with at most {MAX_PLOT_POINTS} points (every k-th row of a longer log; matplotlib; "
+    "an existing file only with --force).",
 )
 @click.option(
     "--report",
@@ -289,7 +292,8 @@ def identify(
     from guardid.conditioning.options import ConditioningOptions
     from guardid.identify import HopfieldSettings, IdentifyOptions
     from guardid.identify import identify as run_identify
-    from guardid.identify.report import plot, table, to_yaml_dict
+    from guardid.identify.report import table, to_yaml_dict
+    from guardid.report.png import plot
 
     if cv and (output or plot_path or report_path):  # --cv prints its table and fits nothing
         given = [o for o, p in (("-o", output), ("--plot", plot_path), ("--report", report_path))

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from guardid.errors import ConfigError
+from guardid.report.series import thin
 
 SECTIONS = {
     "verdict": "Verdict",
@@ -40,7 +41,6 @@ VALIDATION_SECTIONS = {
 
 GOOD_REL_STD_PCT = 2.0  #: a parameter at or below this relative std is drawn green
 POOR_REL_STD_PCT = 10.0  #: above this, red (the pipeline warns from the same bound)
-_MAX_PLOT_POINTS = 3000  #: longer series are thinned (every k-th point) for the page
 
 
 @dataclass
@@ -96,12 +96,6 @@ def _svg(fig) -> str:
     return text[text.index("<svg") :]
 
 
-def _thin(*arrays):
-    n = len(arrays[0])
-    k = max(1, math.ceil(n / _MAX_PLOT_POINTS))
-    return [a[::k] for a in arrays]
-
-
 def _esc(x) -> str:
     return html.escape(str(x), quote=True)
 
@@ -121,7 +115,7 @@ def effort_figure(t_rows, y, pred, joint_names, effort_units, title: str) -> str
     plt = _pyplot()
     n = y.shape[1]
     fig, axes = plt.subplots(n, 1, figsize=(9, 2.4 * n), squeeze=False, sharex=True)
-    t, yy, pp = _thin(np.asarray(t_rows), y, pred)
+    t, yy, pp = thin(np.asarray(t_rows), y, pred)
     for j in range(n):
         ax = axes[j, 0]
         ax.plot(t, yy[:, j], ".", ms=1.6, label="measured")
@@ -203,7 +197,7 @@ def online_figure(result, tracker) -> str | None:
     axes[0, 0].set_title("online estimates / the description's value (0-valued: as estimated)",
                          fontsize=9)  # fmt: skip
     for ax, (m, t, theta, names) in zip(axes[:, 0], series, strict=True):
-        t, theta = _thin(np.asarray(t), np.asarray(theta))
+        t, theta = thin(np.asarray(t), np.asarray(theta))
         for k, name in enumerate(names):
             ax.plot(t, theta[:, k], lw=0.8, label=name)
         if tracker is not None:

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from guardid.report.html import _esc, _fmt, _pyplot, _svg, _thin, _wide_table
+from guardid.report.html import _esc, _fmt, _pyplot, _svg, _wide_table
+from guardid.report.series import thin
 
 SECTION = ("simulation", "Measured and simulated angles")
 """(id, heading) of the section."""
@@ -17,7 +18,7 @@ def angles_figure(t, q_meas, sims, joint_names, title: str) -> str:
     n = q_meas.shape[1]
     fig, axes = plt.subplots(2 * n, 1, figsize=(9, 2.0 * 2 * n), squeeze=False, sharex=True)
     labels = list(sims)
-    tt, qq, *ss = _thin(np.asarray(t), np.degrees(q_meas), *(np.degrees(sims[k]) for k in labels))
+    tt, qq, *ss = thin(np.asarray(t), np.degrees(q_meas), *(np.degrees(sims[k]) for k in labels))
     for j in range(n):
         top, low = axes[2 * j, 0], axes[2 * j + 1, 0]
         top.plot(tt, qq[:, j], lw=1.6, color="k", label="measured")

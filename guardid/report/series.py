@@ -1,0 +1,18 @@
+"""Long series made short enough to draw: the pages' SVG and ``identify --plot``'s PNG."""
+
+from __future__ import annotations
+
+import math
+
+MAX_PLOT_POINTS = 3000
+"""Points per drawn line at most [-]: a figure is about 1000 pixels wide, and a 1 h guard log
+has 240 000 rows (drawn whole they cost the plot 340 MB and several seconds)."""
+
+
+def thin(*arrays, max_points: int | None = None):
+    """Every k-th element of each array (same first length), k the smallest stride that
+    leaves at most ``max_points`` (default :data:`MAX_PLOT_POINTS`); the arrays as they are
+    when already that short."""
+    n = len(arrays[0])
+    k = max(1, math.ceil(n / (max_points or MAX_PLOT_POINTS)))
+    return [a[::k] for a in arrays]
