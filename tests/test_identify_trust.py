@@ -139,6 +139,17 @@ def test_bls_is_the_bounded_least_squares_with_wls_std():
     np.testing.assert_allclose(bls.std_, np.sqrt(np.diag(wls.cov_)), rtol=1e-12)
 
 
+def test_bls_without_a_finite_covariance_clips_at_the_bounds():
+    """A covariance that is not finite (an error model the rows are too few for) gives no
+    metric: the estimate is clipped at the bounds, no exception."""
+    from guardid.identify.trust import _nearest_inside
+
+    theta = np.array([1.0, -0.2, 0.3])
+    cov = np.full((3, 3), np.nan)
+    got = _nearest_inside(theta, cov, np.array([-np.inf, 0.0, 0.0]))
+    np.testing.assert_array_equal(got, [1.0, 0.0, 0.3])
+
+
 def test_bls_inside_its_bounds_is_wls_with_its_error_model(gap_guard_captures):
     """On a guard capture every friction parameter is well above 0: BLS is the verdict's
     WLS, estimate and std (the rows' correlated errors and the encoder's rounding counted)."""

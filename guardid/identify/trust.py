@@ -67,7 +67,10 @@ class BoundedLeastSquares:
 
 
 def _nearest_inside(theta, cov, lower) -> np.ndarray:
-    """argmin (x - theta)^T cov^-1 (x - theta) subject to x >= lower (b,)."""
+    """argmin (x - theta)^T cov^-1 (x - theta) subject to x >= lower (b,); theta clipped at
+    the bounds when ``cov`` is not finite (a fit too short for its error model: no metric)."""
+    if not np.all(np.isfinite(cov)):
+        return np.maximum(theta, lower)
     vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
     keep = vals > vals.max() * 1e-15
     white = (vecs[:, keep] / np.sqrt(vals[keep])).T  # cov^-1/2 on its range
