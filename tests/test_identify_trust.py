@@ -139,15 +139,43 @@ def test_bls_is_the_bounded_least_squares_with_wls_std():
     np.testing.assert_allclose(bls.std_, np.sqrt(np.diag(wls.cov_)), rtol=1e-12)
 
 
-def test_bls_without_a_finite_covariance_clips_at_the_bounds():
-    """A covariance that is not finite (an error model the rows are too few for) gives no
-    metric: the estimate is clipped at the bounds, no exception."""
+def test_bls_without_a_metric_clips_at_the_bounds():
+    """A covariance that is not finite (an error model the rows are too few for), a zero
+    covariance (an exact fit) or an estimate with a NaN gives no metric: the estimate is
+    clipped at the bounds, the other parameters kept, no exception."""
     from guardid.identify.trust import _nearest_inside
 
-    theta = np.array([1.0, -0.2, 0.3])
-    cov = np.full((3, 3), np.nan)
-    got = _nearest_inside(theta, cov, np.array([-np.inf, 0.0, 0.0]))
-    np.testing.assert_array_equal(got, [1.0, 0.0, 0.3])
+    theta, lower = np.array([1.0, -0.2, 0.3]), np.array([-np.inf, 0.0, 0.0])
+    for cov in (np.full((3, 3), np.nan), np.zeros((3, 3))):
+        np.testing.assert_array_equal(_nearest_inside(theta, cov, lower), [1.0, 0.0, 0.3])
+    got = _nearest_inside(np.array([np.nan, -0.2, 0.3]), np.eye(3), lower)
+    np.testing.assert_array_equal(got[1:], [0.0, 0.3])
+
+
+def test_bls_projection_with_scales_decades_apart():
+    """Parameters whose std differ by 8 decades, two of them correlated (0.9): the bounded
+    point is found by hand. Holding x3 at its bound 0 from -0.5 moves x2 by the regression
+    of x2 on x3, 0.9 x (1e-4 / 1) x 0.5 = +4.5e-5, and x1 (uncorrelated) not at all."""
+    from guardid.identify.trust import _nearest_inside
+
+    s = np.array([1e4, 1e-4, 1.0])
+    corr = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.9], [0.0, 0.9, 1.0]])
+    cov = corr * np.outer(s, s)
+    theta = np.array([3.0, 5.0, -0.5])
+    got = _nearest_inside(theta, cov, np.array([-np.inf, -np.inf, 0.0]))
+    want = np.array([3.0, 5.0 + 0.9 * 1e-4 * 0.5, 0.0])
+    assert np.all(np.abs(got - want) / s < 1e-9), (got - want) / s  # in each one's std
+
+
+def test_bls_projection_holds_a_direction_with_no_variance():
+    """x1 - x2 known exactly (a singular covariance: the variance of x1 - x2 is 0): moving
+    x2 up to its bound 0 takes x1 along, by the same amount (the dropped direction of an
+    earlier version left x1 free: moved by 1e4 std)."""
+    from guardid.identify.trust import _nearest_inside
+
+    cov = np.array([[1.0, 1.0], [1.0, 1.0]])  # x1 and x2 move together
+    got = _nearest_inside(np.array([2.0, -0.5]), cov, np.array([-np.inf, 0.0]))
+    np.testing.assert_allclose(got, [2.5, 0.0], atol=1e-5)
 
 
 def test_bls_inside_its_bounds_is_wls_with_its_error_model(gap_guard_captures):

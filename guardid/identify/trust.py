@@ -67,13 +67,20 @@ class BoundedLeastSquares:
 
 
 def _nearest_inside(theta, cov, lower) -> np.ndarray:
-    """argmin (x - theta)^T cov^-1 (x - theta) subject to x >= lower (b,); theta clipped at
-    the bounds when ``cov`` is not finite (a fit too short for its error model: no metric)."""
-    if not np.all(np.isfinite(cov)):
+    """argmin (x - theta)^T cov^-1 (x - theta) subject to x >= lower (b,), solved on the
+    correlation matrix (each parameter in units of its std, so that scales many decades
+    apart do not decide which directions count); a direction the covariance gives (nearly)
+    no variance is held all the stiffer (its eigenvalue floored at 1e-12 of the largest,
+    never dropped). ``theta`` clipped at the bounds when there is no metric: a covariance
+    that is not finite (a fit too short for its error model), a zero std, or an estimate
+    that is not finite."""
+    std = np.sqrt(np.diag(cov)) if np.all(np.isfinite(cov)) else np.zeros(len(theta))
+    if not (np.all(std > 0) and np.all(np.isfinite(theta))):
         return np.maximum(theta, lower)
-    vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
-    keep = vals > vals.max() * 1e-15
-    white = (vecs[:, keep] / np.sqrt(vals[keep])).T  # cov^-1/2 on its range
+    corr = cov / np.outer(std, std)
+    vals, vecs = np.linalg.eigh(0.5 * (corr + corr.T))
+    vals = np.maximum(vals, vals.max() * 1e-12)
+    white = (vecs / np.sqrt(vals)).T / std[None, :]  # cov^-1/2
     sol = lsq_linear(white, white @ theta, bounds=(lower, np.full_like(lower, np.inf)),
                      method="bvls")  # fmt: skip
     return np.maximum(sol.x, lower)  # on the bound exactly where it holds

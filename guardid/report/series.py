@@ -6,7 +6,8 @@ import math
 
 MAX_PLOT_POINTS = 3000
 """Points per drawn line at most [-]: a figure is about 1000 pixels wide, and a 1 h guard log
-has 240 000 rows (drawn whole they cost the plot 340 MB and several seconds)."""
+has 240 000 ticks (``identify --plot`` drawing every row: 531 MB peak and 6.2 s of plotting;
+thinned: 306 MB, 2.9 s; 2026-11-28, 2-core AMD EPYC, idle)."""
 
 
 def thin(*arrays, max_points: int | None = None):
