@@ -169,8 +169,8 @@ def test_bls_projection_with_scales_decades_apart():
 
 def test_bls_projection_holds_a_direction_with_no_variance():
     """x1 - x2 known exactly (a singular covariance: the variance of x1 - x2 is 0): moving
-    x2 up to its bound 0 takes x1 along, by the same amount (the dropped direction of an
-    earlier version left x1 free: moved by 1e4 std)."""
+    x2 up to its bound 0 takes x1 along, by the same amount (an earlier version, which
+    dropped the direction without variance, gave [0.75, 0.75]: x2 not even at its bound)."""
     from guardid.identify.trust import _nearest_inside
 
     cov = np.array([[1.0, 1.0], [1.0, 1.0]])  # x1 and x2 move together

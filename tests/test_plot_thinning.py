@@ -1,5 +1,6 @@
 """Long series are drawn thinned: ``identify --plot`` on a long log drew every row (a 1 h
-guard log: 531 MB peak and 6.2 s of plotting; thinned: 306 MB, 2.9 s)."""
+guard log: 531 MB peak and 6.1-6.3 s of plotting; thinned: 311 MB, 2.6-2.9 s;
+bench/results/plot_thinning_2026-11-28.txt)."""
 
 from __future__ import annotations
 

@@ -74,9 +74,10 @@ def _nearest_inside(theta, cov, lower) -> np.ndarray:
     never dropped). ``theta`` clipped at the bounds when there is no metric: a covariance
     that is not finite (a fit too short for its error model), a zero std, or an estimate
     that is not finite."""
-    std = np.sqrt(np.diag(cov)) if np.all(np.isfinite(cov)) else np.zeros(len(theta))
-    if not (np.all(std > 0) and np.all(np.isfinite(theta))):
+    var = np.diag(cov) if np.all(np.isfinite(cov)) else np.zeros(len(theta))
+    if not (np.all(var > 0) and np.all(np.isfinite(theta))):
         return np.maximum(theta, lower)
+    std = np.sqrt(var)
     corr = cov / np.outer(std, std)
     vals, vecs = np.linalg.eigh(0.5 * (corr + corr.T))
     vals = np.maximum(vals, vals.max() * 1e-12)

@@ -6,8 +6,8 @@ import math
 
 MAX_PLOT_POINTS = 3000
 """Points per drawn line at most [-]: a figure is about 1000 pixels wide, and a 1 h guard log
-has 240 000 ticks (``identify --plot`` drawing every row: 531 MB peak and 6.2 s of plotting;
-thinned: 306 MB, 2.9 s; 2026-11-28, 2-core AMD EPYC, idle)."""
+has 240 000 ticks (``identify --plot`` drawing every row: 531 MB peak and 6.1-6.3 s of
+plotting; thinned: 311 MB, 2.6-2.9 s; bench/results/plot_thinning_2026-11-28.txt)."""
 
 
 def thin(*arrays, max_points: int | None = None):
