@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from capturetools import VARIANT
 
 from guardid.conditioning import (
     CausalConditioner,
@@ -56,6 +57,30 @@ def test_counts_per_rev_and_radians():
     np.testing.assert_allclose(cpr, [24000.0, 48000.0])
     np.testing.assert_allclose(counts_to_rad([[6000, 12000]], guard), [[np.pi / 2, np.pi / 2]])
     np.testing.assert_allclose(drive_gain(guard), [500 * 0.7 * 0.02, 1000 * 0.7 * 0.02])
+
+
+def test_every_stage_reads_one_count_size_from_the_description():
+    """Counts per joint radian worked out by hand from the YAMLs (encoder counts per motor
+    revolution x gear ratio / 2 pi: the guard 48 x 500 and 48 x 1000, the variant robot
+    64 x 300 and 64 x 800), as the description, the plant, capture's limits check and the
+    conditioning read them; a joint without a drive counts at gear ratio 1, one without an
+    encoder has none."""
+    from dataclasses import replace
+
+    from guardid.capture.checks import counts_per_rad
+    from guardid.plant.joints import joint_constants
+
+    for robot, per_rev in (("guard", [24000, 48000]), (str(VARIANT), [19200, 51200])):
+        d = load_robot(robot)
+        want = np.array(per_rev) / (2 * np.pi)
+        np.testing.assert_allclose([j.counts_per_rad for j in d.joints], want, rtol=1e-15)
+        np.testing.assert_allclose(counts_per_rad(d), want, rtol=1e-15)
+        plant = [jc.counts_per_rad for jc in joint_constants(d, True, True)]
+        np.testing.assert_allclose(plant, want, rtol=1e-15)
+        np.testing.assert_allclose(counts_per_joint_rev(d), per_rev, rtol=1e-15)
+    pan = load_robot("guard").joints[0]
+    assert replace(pan, drive=None).counts_per_joint_rev == 48
+    assert replace(pan, encoder=None).counts_per_rad is None
 
 
 def _interior(t, edge=3.0):

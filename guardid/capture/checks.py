@@ -16,10 +16,9 @@ NEEDED_CAPABILITIES = ("current_sense", "voltage_sense", "setpoint_buffer", "wat
 
 
 def counts_per_rad(description) -> np.ndarray:
-    """(n,) encoder counts per joint radian (encoder counts per rev x gear ratio / 2 pi)."""
-    return np.array(
-        [j.encoder.counts_per_rev * j.drive.gear_ratio / (2 * math.pi) for j in description.joints]
-    )
+    """(n,) encoder counts per joint radian (the description's
+    :attr:`~guardid.robot.description.JointDescription.counts_per_rad`)."""
+    return np.array([j.counts_per_rad for j in description.joints])
 
 
 def _robot_name(description) -> str:

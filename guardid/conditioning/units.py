@@ -15,8 +15,7 @@ def counts_per_joint_rev(description) -> np.ndarray:
     for joint in description.joints:
         if joint.encoder is None:
             raise ValueError(f"joint {joint.name!r} has no encoder in the description")
-        ratio = joint.drive.gear_ratio if joint.drive is not None else 1.0
-        out.append(joint.encoder.counts_per_rev * ratio)
+        out.append(joint.counts_per_joint_rev)
     return np.asarray(out, dtype=float)
 
 

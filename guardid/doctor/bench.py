@@ -68,7 +68,7 @@ def joint_facts(description) -> list[JointYaml]:
         d = j.drive
         out.append(JointYaml(
             name=j.name,
-            counts_per_rad=j.encoder.counts_per_rev * d.gear_ratio / (2 * math.pi),
+            counts_per_rad=j.counts_per_rad,
             ke=d.ke * d.gear_ratio, r=d.resistance, supply_v=d.supply_voltage,
             current_range_a=j.current_sensor.range, counts_per_rev=j.encoder.counts_per_rev,
         ))  # fmt: skip

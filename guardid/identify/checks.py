@@ -81,8 +81,7 @@ def check_angles(run, description) -> None:
     for j, joint in enumerate(description.joints):
         if joint.encoder is None:
             continue
-        ratio = joint.drive.gear_ratio if joint.drive is not None else 1.0
-        per_count = 2.0 * np.pi / (joint.encoder.counts_per_rev * ratio)  # [rad]
+        per_count = 2.0 * np.pi / joint.counts_per_joint_rev  # [rad]
         off = np.abs(q[:, j] - counts[:, j] * per_count)
         bad = np.flatnonzero(~(off <= ANGLE_TOLERANCE_COUNTS * per_count))
         if bad.size:

@@ -378,7 +378,7 @@ def _motors(description, runs) -> list[MotorEstimate]:
             cs = joint.current_sensor
             step = 2.0 * cs.range / 2**cs.adc_bits
             noise = math.sqrt(cs.noise**2 + step**2 / 12.0)
-        count = 2 * math.pi / (joint.encoder.counts_per_rev * joint.drive.gear_ratio)
+        count = 2 * math.pi / joint.counts_per_joint_rev
         out.append(
             identify_motor_runs(
                 joint.name,

@@ -55,7 +55,6 @@ def joint_constants(description, friction: bool, limits: bool) -> list[JointCons
         if j.type != "revolute":
             raise PlantError(f"{description.name}: joint {j.name}: plant supports revolute only")
         d, f, e = j.drive, j.friction, j.encoder
-        gear = d.gear_ratio if d is not None else 1.0
         pos = j.limits.position if (limits and j.limits is not None) else None
         out.append(
             JointConst(
@@ -72,7 +71,7 @@ def joint_constants(description, friction: bool, limits: bool) -> list[JointCons
                 fo=f.offset if (f and friction) else 0.0,
                 lo=pos[0] if pos else -math.inf,
                 hi=pos[1] if pos else math.inf,
-                counts_per_rad=gear * e.counts_per_rev / (2 * math.pi) if e else 0.0,
+                counts_per_rad=j.counts_per_rad or 0.0,
                 quadrature=bool(e.quadrature) if e else True,
                 current_sensor=_sensor(j.current_sensor),
                 voltage_sensor=_sensor(j.voltage_sensor),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -160,6 +161,23 @@ class JointDescription:
     voltage_sensor: Sensor | None = None
     pid: PID | None = None
     rotor: Rotor | None = None
+
+    @property
+    def counts_per_joint_rev(self) -> float | None:
+        """Encoder counts per joint revolution [counts]: the encoder's counts per motor
+        revolution x the drive's gear ratio (1 without a drive); on a prismatic joint per
+        2 pi joint units (m). None without an encoder."""
+        if self.encoder is None:
+            return None
+        ratio = self.drive.gear_ratio if self.drive is not None else 1.0
+        return self.encoder.counts_per_rev * ratio
+
+    @property
+    def counts_per_rad(self) -> float | None:
+        """Encoder counts per joint radian (per metre on a prismatic joint) [counts/rad]:
+        :attr:`counts_per_joint_rev` / 2 pi. None without an encoder."""
+        per_rev = self.counts_per_joint_rev
+        return None if per_rev is None else per_rev / (2 * math.pi)
 
     @property
     def reflected_inertia(self) -> float | None:
