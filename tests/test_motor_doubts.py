@@ -53,14 +53,32 @@ def test_a_joint_without_a_drive_is_not_checked():
 
 def test_currents_swapped_under_their_names_are_named_by_identify(gap_guard_captures, tmp_path):
     """The intact capture: no motor warning; the same file with i_pan_A and i_tilt_A's values
-    exchanged (names kept): a warning for each motor, exit 0 (the columns read fine)."""
+    exchanged (names kept): both motors' R come out negative by many std (the voltage no
+    longer pushes the current it drives), so identify refuses it (exit 4) naming both
+    motors; with --force, a warning for each motor and exit 0."""
     log = gap_guard_captures[1]
     intact = invoke("identify", log, "--method", "wls")
     assert intact.exit_code == 0, intact.output
     assert "warning: motor " not in intact.stderr
     bad = tmp_path / "swapped.csv"
     bad.write_text(swapped(log.read_text(), "i_pan_A", "i_tilt_A", names_too=False))
-    res = invoke("identify", bad, "--method", "wls")
+    refused = invoke("identify", bad, "--method", "wls")
+    assert refused.exit_code == 4, refused.output
+    assert "motor pan: R -" in refused.stderr and "motor tilt: R -" in refused.stderr
+    res = invoke("identify", bad, "--method", "wls", "--force")
     assert res.exit_code == 0, res.output
     lines = [x for x in res.stderr.splitlines() if x.startswith("warning: motor ")]
     assert {x.split(":")[1].split()[1] for x in lines} == {"pan", "tilt"}, res.stderr
+
+
+def test_voltages_swapped_under_their_names_are_refused_by_their_ke(gap_guard_captures, tmp_path):
+    """The other branch of the motors' check: v_pan_V and v_tilt_V's values exchanged give
+    the tilt motor a back-EMF constant below zero by tens of std (and the pan a negative R):
+    exit 4 naming the tilt's Ke; with --force, exit 0."""
+    log = gap_guard_captures[1]
+    bad = tmp_path / "swapped_v.csv"
+    bad.write_text(swapped(log.read_text(), "v_pan_V", "v_tilt_V", names_too=False))
+    refused = invoke("identify", bad, "--method", "wls")
+    assert refused.exit_code == 4, refused.output
+    assert "motor tilt: Ke -" in refused.stderr, refused.stderr
+    assert invoke("identify", bad, "--method", "wls", "--force").exit_code == 0

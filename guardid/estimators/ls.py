@@ -265,11 +265,20 @@ class LeastSquares(Estimator):
         return self
 
     def _add_error_structure(self, A3: np.ndarray, raw: np.ndarray) -> None:
-        """The final fit's ``cov_`` with the neighbours' and the groups' shared errors."""
-        if self._lagged():
-            self._add_correlated(A3, raw)
-        if self.row_groups is not None:
-            self._add_repeating(A3, raw)
+        """The final fit's ``cov_`` with the neighbours' and the groups' shared errors; a
+        fit whose white covariance or residuals are not finite (a column the rows never
+        excite, values near the float range) keeps that covariance (``std_`` not finite:
+        what the trust checks report) instead of failing in the decompositions."""
+        if not (np.all(np.isfinite(self.cov_)) and np.all(np.isfinite(raw))):
+            return
+        try:
+            if self._lagged():
+                self._add_correlated(A3, raw)
+            if self.row_groups is not None:
+                self._add_repeating(A3, raw)
+        except np.linalg.LinAlgError:  # overflow inside: no covariance to trust
+            self.cov_ = np.full_like(self.cov_, np.nan)
+            self._set_std()
 
     def _fit_pass(self, A3: np.ndarray, y2: np.ndarray) -> np.ndarray:
         """One weighted solve on the blocks (the groups' part not added); the residuals

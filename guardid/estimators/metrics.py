@@ -29,7 +29,8 @@ def d_tau(A, tau, theta_hat, per_joint: bool = False):
     """
     A3, y2 = as_blocks(A, tau)
     r = y2 - A3 @ np.asarray(theta_hat, dtype=float)
-    per = np.linalg.norm(r, axis=0) / np.linalg.norm(y2, axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):  # a joint without rows: NaN
+        per = np.linalg.norm(r, axis=0) / np.linalg.norm(y2, axis=0)
     return per if per_joint else float(per.mean())
 
 

@@ -118,4 +118,23 @@ def trust_problems(ls, names, results: dict, motors=()) -> list[str]:
         values = (m.resistance, m.resistance_std, m.ke, m.ke_std)
         if not all(np.isfinite(v) for v in values):
             problems.append(f"motor {m.joint}: R or Ke not determined (the joint hardly moves)")
+            continue
+        for what, x, s, unit in (("R", m.resistance, m.resistance_std, "ohm"),
+                                 ("Ke", m.ke, m.ke_std, "V s/rad")):  # fmt: skip
+            if x < -IMPOSSIBLE_STD * s:
+                problems.append(
+                    f"motor {m.joint}: {what} {x:.4g} +- {s:.2g} {unit}, below zero by more than "
+                    f"{IMPOSSIBLE_STD:g} std (its voltage, current or angle column swapped or of "
+                    "the wrong sign?)"
+                )
     return problems
+
+
+IMPOSSIBLE_STD = 3.0
+"""A motor's resistance R or back-EMF constant Ke more than this many of its own std below
+zero makes the result untrusted [-]: noise puts an honest estimate there in about 0.13 % of
+cases (the std's promise: truth within 3 std); a swapped or sign-flipped voltage, current
+or angle column puts it there by several to hundreds (the electrical model is linear and
+exact up to the sensors' noise). Friction is only warned about: a real robot's friction
+departs from the model enough to put an estimate a few std below zero (the DFKI pendulum's
+Fv1, 3.2 std, tests/test_foreign_logs.py)."""
