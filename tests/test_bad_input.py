@@ -83,6 +83,9 @@ def _issue26_files(d: Path, f: Files, guard_yaml: str) -> None:
     p["methods"]["ls"]["values"][2] = "abc"
     (d / "params_str.yaml").write_text(yaml.safe_dump(p, sort_keys=False))
     p = yaml.safe_load(f.params.read_text())
+    p["methods"]["ls"]["values"][0] = float("nan")
+    (d / "params_nan.yaml").write_text(yaml.safe_dump(p, sort_keys=False))
+    p = yaml.safe_load(f.params.read_text())
     p["methods"] = {}
     (d / "params_nomethod.yaml").write_text(yaml.safe_dump(p, sort_keys=False))
     t = yaml.safe_load(f.traj.read_text())
@@ -130,6 +133,32 @@ def files(tmp_path_factory):
         parts[4] = value  # q_pan_rad of data row 101
         bad[rows[100]] = ",".join(parts)
         (d / name).write_text("".join(bad))
+    for name, col, value in (("huge_current.csv", 8, "1e300"), ("huge_voltage.csv", 7, "99")):
+        bad = list(lines)  # i_pan_A / v_tilt_V of data row 101, beyond the sensor's range
+        parts = bad[rows[100]].rstrip("\n").split(",")
+        parts[col] = value
+        bad[rows[100]] = ",".join(parts) + "\n"
+        (d / name).write_text("".join(bad))
+    # the header's sample period edited: against the firmware's tick, against the robot's
+    (d / "period_vs_tick.csv").write_text(
+        text.replace("# sample_period_s: 0.015", "# sample_period_s: 0.03")
+    )
+    both = text.replace("# sample_period_s: 0.015", "# sample_period_s: 0.03")
+    (d / "period_vs_robot.csv").write_text(
+        both.replace("#   tick_period: 0.015", "#   tick_period: 0.03")
+    )
+    still_pan = list(lines)  # the pan's counts and angle 0 in every row: it never moved
+    for k in rows:
+        parts = still_pan[k].rstrip("\n").split(",")
+        parts[2], parts[4] = "0", "0"
+        still_pan[k] = ",".join(parts) + "\n"
+    (d / "pan_still.csv").write_text("".join(still_pan))
+    edge = list(lines)  # the ADC's extreme readings: -2 A and 2 A - one step (4 A / 1024)
+    parts = edge[rows[100]].rstrip("\n").split(",")
+    parts[8], parts[9] = "-2", "1.99609375"
+    edge[rows[100]] = ",".join(parts) + "\n"
+    (d / "edge_current.csv").write_text("".join(edge))
+    (d / "robot_nowhere.csv").write_text(_header_robot(text, "nowhere", Path("nowhere.yaml")))
     (d / "gzip.csv").write_bytes(gzip.compress(text.encode()))
     (d / "dropped.csv").write_text(_drop_columns(text, ("q_pan_rad", "i_pan_A")))
     (d / "no_voltage.csv").write_text(_drop_columns(text, ("v_pan_V", "v_tilt_V")))
@@ -177,6 +206,7 @@ ROWS = [
     ("validate-same-log-twice", "validate {run} {run} --params {params}", 2, ["run.csv", "twice"]),
     # results that cannot be trusted
     ("identify-never-moved", "identify {still.csv} -o {p_still.yaml}", 4, ["still.csv", "cannot be trusted", "--force"]),
+    ("identify-one-joint-never-moved", "identify {pan_still.csv} -o {p_pan_still.yaml}", 4, ["pan_still.csv", "cannot be trusted", "ZZ1R", "regressor column zero"]),
     # excitation parameters
     ("excite-base-freq-50", "excite --base-freq 50 -o {x.yaml}", 2, ["--base-freq", "Nyquist"]),
     ("excite-schroeder-too-fast", "excite --kind schroeder --base-freq 2 -o {x.yaml}", 2, ["--base-freq", "20 Hz"]),
@@ -198,6 +228,14 @@ ROWS = [
     ("log-nan", "identify {nan.csv}", 2, ["nan.csv", "line ", "q_pan_rad", "not finite"]),
     ("log-inf", "identify {inf.csv}", 2, ["inf.csv", "line ", "q_pan_rad", "not finite"]),
     ("log-gzip-named-csv", "identify {gzip.csv}", 2, ["gzip.csv"]),
+    ("log-current-beyond-its-sensor", "identify {huge_current.csv}", 2, ["huge_current.csv", "i_pan_A", "data row 101", "range +-2 A"]),
+    ("validate-current-beyond-its-sensor", "validate {huge_current.csv} --params {params}", 2, ["huge_current.csv", "i_pan_A", "data row 101"]),
+    ("log-voltage-beyond-its-sensor", "identify {huge_voltage.csv}", 2, ["huge_voltage.csv", "v_tilt_V", "data row 101", "range +-15 V"]),
+    ("log-sample-period-not-the-tick", "identify {period_vs_tick.csv}", 2, ["period_vs_tick.csv", "sample_period_s 0.03", "tick_period 0.015"]),
+    ("log-sample-period-not-the-robots", "identify {period_vs_robot.csv}", 2, ["period_vs_robot.csv", "sample_period_s 0.03", "guard", "sample_period 0.015"]),
+    ("log-robot-source-nowhere", "identify {robot_nowhere.csv}", 2, ["robot_nowhere.csv", "robot_source", "nowhere", "--robot"]),
+    ("simulate-payload-mass-nan", "simulate --payload-time 1 --payload-mass nan --duration 1 -o {s.csv}", 2, ["--payload-mass", "finite", "nan"]),
+    ("simulate-other-robots-params", "simulate --params {params_b.yaml} --duration 1 -o {s.csv}", 2, ["params_b.yaml", "guard_b", "guard"]),
     ("log-ticks-restart", "identify {appended.csv}", 2, ["appended.csv", "tick"]),
     ("log-missing", "identify {nowhere.csv}", 2, ["nowhere.csv"]),
     ("log-a-joints-columns-dropped", "identify {dropped.csv}", 2, ["dropped.csv", "q_*"]),
@@ -229,6 +267,8 @@ ROWS = [
     ("capture-o-missing-dir", "capture --trajectory {traj} --duration 1 -o {nodir/r.csv}", 2, ["-o", "nodir", "does not exist"]),
     # issue 26: tracebacks
     ("validate-params-string-value", "validate {run} --params {params_str.yaml}", 2, ["params_str.yaml", "methods.ls.values[2]", "'abc' is not a number"]),
+    ("validate-params-nan-value", "validate {run} --params {params_nan.yaml}", 2, ["params_nan.yaml", "methods.ls.values[0]", "ZZ1R", "not finite"]),
+    ("simulate-params-nan-value", "simulate --params {params_nan.yaml} --duration 1 -o {s.csv}", 2, ["params_nan.yaml", "methods.ls.values[0]", "not finite"]),
     ("validate-params-no-method", "validate {run} --params {params_nomethod.yaml}", 2, ["params_nomethod.yaml", "methods", "empty"]),
     ("identify-method-empty", "identify {run} --method '' -o {p_empty.yaml}", 2, ["--method", "no method"]),
     ("capture-duration-1e9", "capture --trajectory {traj} --duration 1e9 -o {c.csv}", 2, ["--duration", "free", "c.csv"]),
@@ -283,6 +323,34 @@ def test_cut_last_row_is_a_warning_and_exit_0(files):
     assert result.exit_code == 0, result.stderr
     assert "Traceback" not in result.stderr
     assert any("cut.csv" in line and "warning" in line for line in result.stderr.splitlines())
+
+
+def test_the_sensors_extreme_readings_are_taken(files):
+    """The range check's other branch: -2 A and 2 A - one ADC step, what the 10-bit +-2 A
+    sensor reads at its ends, are kept (exit 0)."""
+    result = invoke("identify", files / "edge_current.csv", "--method", "ls")
+    assert result.exit_code == 0, result.stderr
+
+
+def test_validate_names_a_joint_without_a_usable_row(files):
+    """The pan never moved: validate scores the tilt and says the pan has no usable row
+    (it called it passive, with an error of 0, before)."""
+    result = invoke("validate", files / "pan_still.csv", "--params", files.params)
+    assert result.exit_code == 0, result.stderr
+    rows = [x for x in result.stdout.splitlines() if "params.yaml:LS" in x]
+    assert rows and all("no usable row" in x and "passive" not in x for x in rows), result.stdout
+
+
+def test_a_header_robot_source_is_found_beside_the_log(files, tmp_path):
+    """A log whose header names its robot file relative to the log's folder (capture ran
+    there) is identified from any working directory."""
+    (tmp_path / "guard_b.yaml").write_text((files / "guard_b.yaml").read_text())
+    sub = tmp_path / "sub"
+    sub.mkdir()
+    text = (files / "other.csv").read_text()
+    (sub / "rel.csv").write_text(_header_robot(text, "guard_b", Path("../guard_b.yaml")))
+    result = invoke("identify", sub / "rel.csv", "--method", "ls")
+    assert result.exit_code == 0, result.stderr
 
 
 def test_a_log_without_voltages_is_identified_without_the_motors(files):

@@ -6,6 +6,7 @@ import datetime as _dt
 import math
 import os
 import sys
+from pathlib import Path
 
 import click
 
@@ -269,7 +270,8 @@ def _capture(
             raise
         header = {
             "robot": description.name,
-            "robot_source": str(description.source),
+            # absolute: identify finds the robot from any directory
+            "robot_source": str(Path(description.source).resolve()) if description.source else "",
             "port": port_url,
             "baud": baud,
             "protocol_version": info["protocol_version"],

@@ -19,9 +19,18 @@ def _robot_for(run, robot_opt):
     spec = robot_opt or run.robot
     if not spec:
         raise ConfigError(f"{run.path}: the log names no robot: give --robot")
-    if not robot_opt and not Path(str(spec)).exists():
-        spec = Path(str(spec)).stem if str(spec).endswith(".yaml") else spec
-    return load_robot(spec)
+    if robot_opt:
+        return load_robot(spec)
+    path = Path(str(spec))
+    beside = Path(str(run.path)).parent / path  # a relative path: from the log's folder
+    if not path.exists() and not path.is_absolute() and beside.exists():
+        path = beside
+    if not path.exists():  # a shipped robot by name, or a YAML that is not here
+        path = Path(path.stem) if path.suffix in (".yaml", ".yml", ".urdf") else path
+    try:
+        return load_robot(str(path))
+    except ConfigError as exc:
+        raise ConfigError(f"{run.path}: header robot_source {spec}: {exc} (give --robot)") from None
 
 
 def _foreign_options(f):

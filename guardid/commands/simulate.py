@@ -153,6 +153,11 @@ def simulate(
             com = ()
         if len(com) != 3:
             raise SimulateError(f"--payload-com must be x,y,z in m, got {payload_com!r}")
+        if not all(math.isfinite(x) for x in (payload_time, payload_mass, *com)):
+            raise SimulateError(
+                f"--payload-time, --payload-mass and --payload-com must be finite, got "
+                f"{payload_time}, {payload_mass}, {payload_com!r}"
+            )
         if payload_mass < 0 or payload_time < 0:
             raise SimulateError("--payload-time and --payload-mass must be >= 0")
         payload = (PayloadChange(payload_time, payload_mass, com),)

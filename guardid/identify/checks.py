@@ -39,6 +39,15 @@ def check_log_robot(run, description, robot_from: str):
             f"{run.path}: a log of robot {named}, but {robot_from} describes robot "
             f"{description.name} (give the log's robot)"
         )
+    period = getattr(description, "sample_period", None)
+    if run.sample_period_s is not None and run.counts is not None and period:
+        if abs(run.sample_period_s - period) > 0.01 * period:
+            raise ConfigError(
+                f"{run.path}: header: sample_period_s {run.sample_period_s:g} s, but robot "
+                f"{description.name} ({robot_from}) has sample_period {period:g} s (its "
+                "motors' and PID's period: give the robot the log was captured on, or "
+                "correct its sample_period)"
+            )
     joints = _joints(description)
     if run.joint_names is None:
         return run
@@ -60,7 +69,36 @@ def check_log_robot(run, description, robot_from: str):
             setattr(run, key, np.asarray(value)[:, order])
     run.joint_names = joints
     check_angles(run, description)
+    check_sensor_ranges(run, description)
     return run
+
+
+def check_sensor_ranges(run, description) -> None:
+    """Refuse a guardid log (one with counts) holding a current or voltage beyond what the
+    described sensor reads: its ADC spans +-range [A | V], one step (2 range / 2^adc_bits)
+    of margin for the converted value's rounding. Names the column, the data row (1 = the
+    first) and the range: a corrupt value (1e300 A) would otherwise reach the fit."""
+    if run.counts is None or getattr(description, "joints", None) is None:
+        return
+    for key, unit, column in (("current", "A", "i"), ("voltage", "V", "v")):
+        values = getattr(run, key, None)
+        if values is None or np.size(values) == 0:
+            continue
+        values = np.asarray(values, dtype=float)
+        for j, joint in enumerate(description.joints):
+            sensor = getattr(joint, f"{key}_sensor")
+            if sensor is None:
+                continue
+            most = sensor.range * (1.0 + 2.0 / 2**sensor.adc_bits)
+            bad = np.flatnonzero(np.abs(values[:, j]) > most)
+            if bad.size:
+                k = int(bad[0])
+                raise ConfigError(
+                    f"{run.path}: column {column}_{joint.name}_{unit}, data row {k + 1}: "
+                    f"{values[k, j]:.6g} {unit}, beyond the {key} sensor's range +-"
+                    f"{sensor.range:g} {unit} (robot {description.name}'s description): a "
+                    "corrupt value, or another sensor than the description's"
+                )
 
 
 ANGLE_TOLERANCE_COUNTS = 1e-3

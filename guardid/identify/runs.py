@@ -197,6 +197,14 @@ def _sample_period(path, header, given) -> float:
         raise LogFormatError(
             f"{path}: header: sample_period_s: expected seconds > 0, got {value!r}"
         )
+    firmware = header.get("firmware")
+    tick = firmware.get("tick_period") if isinstance(firmware, dict) else None
+    if not given and isinstance(tick, (int, float)) and not isinstance(tick, bool):
+        if abs(float(tick) - float(value)) > 1e-6 * float(tick):
+            raise LogFormatError(
+                f"{path}: header: sample_period_s {value:g} s, but the firmware's tick_period "
+                f"{tick:g} s (the header edited? each row is one tick)"
+            )
     return float(value)
 
 

@@ -24,6 +24,7 @@ Base parameters a reference file leaves out take the robot description's values 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -50,7 +51,9 @@ class ParameterSet:
 @dataclass
 class Score:
     """One parameter set on one run: stacked relative error [-], per joint rms error [joint
-    unit] (n,) and relative error (n,) (NaN for a passive joint), rows used."""
+    unit] (n,) and relative error (n,) (NaN for a passive joint or one without rows), rows
+    used; ``rowless`` (n,) the joints none of whose rows was usable (the momentum form cuts
+    a joint that never moves, or is stuck or on a stop throughout): not scored."""
 
     label: str
     run: str
@@ -60,6 +63,7 @@ class Score:
     passive: np.ndarray
     rows: int
     ref2: float = 0.0  # sum of tau^2 over the rows (to stack runs)
+    rowless: np.ndarray | None = None
 
 
 def joint_units(description, current_units: bool = False) -> list[str]:
@@ -148,6 +152,13 @@ def params_sets(path, params: dict, description) -> list[ParameterSet]:
         theta = entry.get("values") if isinstance(entry, dict) else None
         if not isinstance(theta, list) or len(theta) != len(names):
             raise ConfigError(f"{path}: methods.{m}.values: expected {len(names)} numbers")
+        bad = [k for k, v in enumerate(theta) if not math.isfinite(float(v))]
+        if bad:
+            raise ConfigError(
+                f"{path}: methods.{m}.values[{bad[0]}] ({names[bad[0]]}): {theta[bad[0]]!r} is "
+                "not finite (a fit that could not be trusted, written with --force?): no "
+                "model to score or run"
+            )
         values = dict(nominal)  # parameters identification does not estimate keep the YAML's
         values.update({n: float(v) for n, v in zip(names, theta, strict=True)})
         out.append(ParameterSet(f"{path}:{m.upper()}", values, description))
@@ -170,9 +181,11 @@ def score_sets(rows_per_run, sets, run_names, current_units=False, preds=None) -
         tau = cond.tau[m]
         # rows per joint (the momentum form zeroes a joint's cut rows)
         jm = getattr(cond, "joint_mask", None)
-        n_j = np.maximum(jm[m].sum(0) if jm is not None else np.full(tau.shape[1], len(tau)), 1)
+        used = jm[m].sum(0) if jm is not None else np.full(tau.shape[1], len(tau))
+        rowless = used == 0
+        n_j = np.maximum(used, 1)
         rms_tau = np.sqrt(np.sum(tau**2, axis=0) / n_j)
-        passive = rms_tau < PASSIVE_FRACTION * rms_tau.max()
+        passive = (rms_tau < PASSIVE_FRACTION * rms_tau.max()) & ~rowless
         for s in sets:
             if id(s.description) not in models:
                 models[id(s.description)] = build_model(s.description)
@@ -183,10 +196,10 @@ def score_sets(rows_per_run, sets, run_names, current_units=False, preds=None) -
                 preds[(name, s.label)] = pred
             r = tau - pred
             rms = np.sqrt(np.sum(r**2, axis=0) / n_j)
-            rel = np.where(passive, np.nan, rms / np.where(rms_tau > 0, rms_tau, 1.0))
+            rel = np.where(passive | rowless, np.nan, rms / np.where(rms_tau > 0, rms_tau, 1.0))
             stacked = float(np.sqrt(np.mean(r**2)) / np.sqrt(np.mean(tau**2)))
             out.append(Score(s.label, name, stacked, rms, rel, passive, int(m.sum()),
-                             float(np.sum(tau**2))))  # fmt: skip
+                             float(np.sum(tau**2)), rowless))  # fmt: skip
     return out
 
 
@@ -207,7 +220,10 @@ def table(scores, description, current_units=False) -> str:
             line = f"  {s.label:{width}s} {100 * s.stacked:7.2f}%"
             for k in range(len(joints)):
                 rel = "passive" if s.passive[k] else f"{100 * s.relative[k]:.2f} %"
-                line += f"  {f'{s.rms[k]:.4g} ({rel})':>28s}"
+                cell = f"{s.rms[k]:.4g} ({rel})"
+                if s.rowless is not None and s.rowless[k]:
+                    cell = "no usable row"
+                line += f"  {cell:>28s}"
             lines.append(line)
     return "\n".join(lines)
 

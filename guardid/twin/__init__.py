@@ -64,6 +64,20 @@ def pick_set(path, description, method: str | None):
     raise ConfigError(f"{path}: method {method!r}: not in the file (known: {known})")
 
 
+def _check_robot(path, description, option: str) -> None:
+    """One-line ConfigError when the params file ``path`` was identified for another robot
+    than ``description`` (its ``robot:``; a reference values file has none)."""
+    from guardid.identify.validation import first_params
+
+    stored = first_params([path])
+    named = stored[1].get("robot") if stored else None
+    if named and str(named) != description.name:
+        raise ConfigError(
+            f"{path}: robot: parameters of robot {named}, but {option} would run them on robot "
+            f"{description.name} (give --robot {named}'s description)"
+        )
+
+
 def load_twin(path, description, method: str | None = None, option: str = "params") -> Twin:
     """The :class:`Twin` of ``description`` with the base parameters of ``path`` (a params
     file or a reference values file); one-line ConfigError naming ``option`` and the file
@@ -82,6 +96,7 @@ def load_twin(path, description, method: str | None = None, option: str = "param
         check_simulable(description)
     except GuardidError as exc:
         raise ConfigError(str(exc).replace("--method iv/didim", option)) from None
+    _check_robot(path, description, option)
     chosen = pick_set(path, description, method)
     model = build_model(description)
     names = tuple(model.base.names)
