@@ -267,8 +267,8 @@ ROWS = [
     ("capture-o-missing-dir", "capture --trajectory {traj} --duration 1 -o {nodir/r.csv}", 2, ["-o", "nodir", "does not exist"]),
     # issue 26: tracebacks
     ("validate-params-string-value", "validate {run} --params {params_str.yaml}", 2, ["params_str.yaml", "methods.ls.values[2]", "'abc' is not a number"]),
-    ("validate-params-nan-value", "validate {run} --params {params_nan.yaml}", 2, ["params_nan.yaml", "methods.ls.values[0]", "ZZ1R", "not finite"]),
-    ("simulate-params-nan-value", "simulate --params {params_nan.yaml} --duration 1 -o {s.csv}", 2, ["params_nan.yaml", "methods.ls.values[0]", "not finite"]),
+    ("validate-params-nan-value", "validate {run} --params {params_nan.yaml}", 2, ["params_nan.yaml", "methods.ls", "ZZ1R", "not finite"]),
+    ("simulate-params-nan-value", "simulate --params {params_nan.yaml} --duration 1 -o {s.csv}", 2, ["params_nan.yaml", "methods.ls", "ZZ1R", "not finite"]),
     ("validate-params-no-method", "validate {run} --params {params_nomethod.yaml}", 2, ["params_nomethod.yaml", "methods", "empty"]),
     ("identify-method-empty", "identify {run} --method '' -o {p_empty.yaml}", 2, ["--method", "no method"]),
     ("capture-duration-1e9", "capture --trajectory {traj} --duration 1e9 -o {c.csv}", 2, ["--duration", "free", "c.csv"]),

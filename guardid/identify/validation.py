@@ -152,13 +152,6 @@ def params_sets(path, params: dict, description) -> list[ParameterSet]:
         theta = entry.get("values") if isinstance(entry, dict) else None
         if not isinstance(theta, list) or len(theta) != len(names):
             raise ConfigError(f"{path}: methods.{m}.values: expected {len(names)} numbers")
-        bad = [k for k, v in enumerate(theta) if not math.isfinite(float(v))]
-        if bad:
-            raise ConfigError(
-                f"{path}: methods.{m}.values[{bad[0]}] ({names[bad[0]]}): {theta[bad[0]]!r} is "
-                "not finite (a fit that could not be trusted, written with --force?): no "
-                "model to score or run"
-            )
         values = dict(nominal)  # parameters identification does not estimate keep the YAML's
         values.update({n: float(v) for n, v in zip(names, theta, strict=True)})
         out.append(ParameterSet(f"{path}:{m.upper()}", values, description))
@@ -238,16 +231,37 @@ def _yaml(path) -> dict:
 
 
 def load_sets(path, description) -> list[ParameterSet]:
-    """Parameter sets of ``path``: a params file (one per method) or a reference file."""
+    """Parameter sets of ``path``: a params file (one per method) or a reference file;
+    each set's values finite (:func:`check_finite`: what validate scores and simulate runs)."""
     from guardid.identify.report import read_params
 
     data = _yaml(path)
     if "guardid-reference" in data:
-        return [reference_set(path, description)]
-    data = read_params(path)
-    if not data["methods"]:
-        raise ConfigError(f"{path}: methods: empty (no estimate to score; rerun guardid identify)")
-    return params_sets(path, data, description)
+        sets = [reference_set(path, description)]
+    else:
+        data = read_params(path)
+        if not data["methods"]:
+            raise ConfigError(
+                f"{path}: methods: empty (no estimate to score; rerun guardid identify)"
+            )
+        sets = params_sets(path, data, description)
+    for s in sets:
+        check_finite(path, s)
+    return sets
+
+
+def check_finite(path, parameter_set) -> None:
+    """One-line ConfigError naming ``path``, the set's method and the first parameter whose
+    value is not finite (an untrusted fit written with ``--force``): no model to score or
+    run with it."""
+    bad = [n for n, v in parameter_set.values.items() if not math.isfinite(float(v))]
+    if bad:
+        method = parameter_set.label.rsplit(":", 1)[-1].lower()
+        raise ConfigError(
+            f"{path}: methods.{method}: {bad[0]} = {parameter_set.values[bad[0]]!r} is not "
+            "finite (a fit that could not be trusted, written with --force?): no model to "
+            "score or run"
+        )
 
 
 def first_params(paths):
