@@ -234,6 +234,8 @@ ROWS = [
     ("log-sample-period-not-the-tick", "identify {period_vs_tick.csv}", 2, ["period_vs_tick.csv", "sample_period_s 0.03", "tick_period 0.015"]),
     ("log-sample-period-not-the-robots", "identify {period_vs_robot.csv}", 2, ["period_vs_robot.csv", "sample_period_s 0.03", "guard", "sample_period 0.015"]),
     ("log-robot-source-nowhere", "identify {robot_nowhere.csv}", 2, ["robot_nowhere.csv", "robot_source", "nowhere", "--robot"]),
+    ("simulate-shorter-than-a-tick", "simulate --duration 0.001 -o {s.csv}", 2, ["--duration", "0.001", "one tick"]),
+    ("simulate-duration-1e12", "simulate --duration 1e12 -o {s.csv}", 2, ["--duration", "s.csv", "free"]),
     ("simulate-payload-mass-nan", "simulate --payload-time 1 --payload-mass nan --duration 1 -o {s.csv}", 2, ["--payload-mass", "finite", "nan"]),
     ("simulate-other-robots-params", "simulate --params {params_b.yaml} --duration 1 -o {s.csv}", 2, ["params_b.yaml", "guard_b", "guard"]),
     ("log-ticks-restart", "identify {appended.csv}", 2, ["appended.csv", "tick"]),

@@ -368,10 +368,12 @@ ROW_BYTES_BASE, ROW_BYTES_PER_JOINT = 30, 60
 voltage, current and setpoint as :class:`guardid.log.LogWriter` formats them."""
 
 
-def _check_room(output, duration_s: float, description) -> None:
+def _check_room(output, duration_s: float, description, row_bytes: float | None = None) -> None:
     """ConfigError when the log of a ``duration_s`` [s] capture would not fit in the free
     space of ``output``'s file system (``--duration 1e9``: terabytes). Not for a device or
-    a pipe given with --force (the log goes elsewhere)."""
+    a pipe given with --force (the log goes elsewhere). ``row_bytes``: a row's size at most
+    [bytes] (default: a capture log's, :data:`ROW_BYTES_BASE` and
+    :data:`ROW_BYTES_PER_JOINT`)."""
     import shutil
     import stat
     from pathlib import Path
@@ -384,7 +386,9 @@ def _check_room(output, duration_s: float, description) -> None:
     except OSError:
         return  # checked by check_output already; nothing more to say
     rows = duration_s / description.sample_period
-    need = rows * (ROW_BYTES_BASE + ROW_BYTES_PER_JOINT * len(description.joints))
+    if row_bytes is None:
+        row_bytes = ROW_BYTES_BASE + ROW_BYTES_PER_JOINT * len(description.joints)
+    need = rows * row_bytes
     if need > free:
         raise ConfigError(
             f"--duration {duration_s:g} s: the log {output} would need about "

@@ -58,6 +58,12 @@ class Pid:
         return max(-self.limit, min(self.limit, out))
 
 
+ROW_BYTES_BASE, ROW_BYTES_PER_JOINT = 34, 8 * 16
+"""A simulate row's size at most [bytes]: tick and time, then per joint eight values (true q,
+qd, current, counts, sensed q, voltage, current, setpoint) of at most 16 characters with
+their comma (``%.9g``)."""
+
+
 def run(robot: str, duration: float, seed: int, payload, noise: bool = True, twin=None):
     """Simulate; yield (sample, setpoint) per tick. Raises GuardidError subclasses.
     ``twin``: a :class:`guardid.twin.Twin` run instead of the description's rigid body."""
@@ -131,7 +137,8 @@ def simulate(
     the period ending at t, encoder counts, q_sensed [rad], sensed mean voltage [V] and
     current [A], and the setpoint [rad] the PID used at t.
     """
-    from guardid.commands.outputs import check_output, robot_file, write_text
+    from guardid.commands.capture import _check_room
+    from guardid.commands.outputs import check_output, replacing, robot_file
     from guardid.plant import PayloadChange
 
     inputs = [("--robot", robot_file(robot))] + ([("--params", params_path)] if params_path else [])
@@ -161,23 +168,20 @@ def simulate(
         if payload_mass < 0 or payload_time < 0:
             raise SimulateError("--payload-time and --payload-mass must be >= 0")
         payload = (PayloadChange(payload_time, payload_mass, com),)
+    from guardid.robot import load_robot
+
+    description = load_robot(robot)
     twin = None
     if params_path is not None:
-        from guardid.robot import load_robot
         from guardid.twin import load_twin
 
-        robot = load_robot(robot)
-        twin = load_twin(params_path, robot, method, option="--params")
-    wall = time.perf_counter()
-    rows, sq_err, n = [], None, 0
-    for desc, s, sp in run(robot, duration, seed, payload, noise=not no_noise, twin=twin):
-        cols = [*s.q, *s.qd, *s.current_true, *s.counts, *s.q_sensed, *s.voltage, *s.current]
-        rows.append(f"{s.tick},{s.time:.6f}," + ",".join(f"{x:.9g}" for x in (*cols, *sp)))
-        err = [r - q for r, q in zip(sp, s.q, strict=True)]
-        sq_err = [a + e * e for a, e in zip(sq_err or [0.0] * len(err), err, strict=True)]
-        n += 1
-        description = desc
-    wall = time.perf_counter() - wall
+        twin = load_twin(params_path, description, method, option="--params")
+    if round(duration / description.sample_period) < 1:
+        raise SimulateError(
+            f"--duration {duration:g} s: shorter than one tick ({description.sample_period:g} s)"
+        )
+    n_j = len(getattr(description, "joints", ()) or ())
+    _check_room(output, duration, description, row_bytes=ROW_BYTES_BASE + ROW_BYTES_PER_JOINT * n_j)
     head = [f"# robot: {description.name}", f"# seed: {seed}",
             f"# sample_period_s: {description.sample_period}",
             "# units: rad, rad/s, A, V; row k = tick k (t = k T), currents/voltages are means"
@@ -186,8 +190,18 @@ def simulate(
         head.append(f"# twin: {twin.label}")
     if payload:
         head.append(f"# payload: time_s={payload_time} mass_kg={payload_mass} com_m={payload_com}")
-    text = "\n".join([*head, ",".join(_columns(len(description.joints))), *rows]) + "\n"
-    write_text(output, text)
+    wall = time.perf_counter()
+    sq_err, n = None, 0
+    # row by row into the output's temporary file: memory stays flat however long the run
+    with replacing(output) as tmp, open(tmp, "w", encoding="utf-8") as fh:
+        fh.write("\n".join([*head, ",".join(_columns(n_j))]) + "\n")
+        for _, s, sp in run(description, duration, seed, payload, noise=not no_noise, twin=twin):
+            cols = [*s.q, *s.qd, *s.current_true, *s.counts, *s.q_sensed, *s.voltage, *s.current]
+            fh.write(f"{s.tick},{s.time:.6f}," + ",".join(f"{x:.9g}" for x in (*cols, *sp)) + "\n")
+            err = [r - q for r, q in zip(sp, s.q, strict=True)]
+            sq_err = [a + e * e for a, e in zip(sq_err or [0.0] * len(err), err, strict=True)]
+            n += 1
+    wall = time.perf_counter() - wall
     rms = ", ".join(f"{math.sqrt(x / n):.4f}" for x in sq_err)
     click.echo(f"simulate: {description.name} {n} ticks ({duration:g} s) seed {seed} -> {output};"
                f" rms tracking error [{rms}] rad; {duration / wall:.0f}x real time")  # fmt: skip
