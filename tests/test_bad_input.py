@@ -85,6 +85,8 @@ def _issue26_files(d: Path, f: Files, guard_yaml: str) -> None:
     p = yaml.safe_load(f.params.read_text())
     p["methods"]["ls"]["values"][0] = float("nan")
     (d / "params_nan.yaml").write_text(yaml.safe_dump(p, sort_keys=False))
+    p["methods"]["wls"] = yaml.safe_load(f.params.read_text())["methods"]["ls"]  # finite
+    (d / "params_nan_and_finite.yaml").write_text(yaml.safe_dump(p, sort_keys=False))
     p = yaml.safe_load(f.params.read_text())
     p["methods"] = {}
     (d / "params_nomethod.yaml").write_text(yaml.safe_dump(p, sort_keys=False))
@@ -153,11 +155,13 @@ def files(tmp_path_factory):
         parts[2], parts[4] = "0", "0"
         still_pan[k] = ",".join(parts) + "\n"
     (d / "pan_still.csv").write_text("".join(still_pan))
-    edge = list(lines)  # the ADC's extreme readings: -2 A and 2 A - one step (4 A / 1024)
-    parts = edge[rows[100]].rstrip("\n").split(",")
-    parts[8], parts[9] = "-2", "1.99609375"
-    edge[rows[100]] = ",".join(parts) + "\n"
-    (d / "edge_current.csv").write_text("".join(edge))
+    # the margin: 2 A + one ADC step (4 A / 1024) + half a mA of the firmware's rounding
+    for name, value in (("edge_current.csv", "-2.0043"), ("past_edge_current.csv", "-2.0045")):
+        edge = list(lines)
+        parts = edge[rows[100]].rstrip("\n").split(",")
+        parts[8], parts[9] = value, "1.99609375"
+        edge[rows[100]] = ",".join(parts) + "\n"
+        (d / name).write_text("".join(edge))
     (d / "robot_nowhere.csv").write_text(_header_robot(text, "nowhere", Path("nowhere.yaml")))
     (d / "gzip.csv").write_bytes(gzip.compress(text.encode()))
     (d / "dropped.csv").write_text(_drop_columns(text, ("q_pan_rad", "i_pan_A")))
@@ -228,6 +232,7 @@ ROWS = [
     ("log-nan", "identify {nan.csv}", 2, ["nan.csv", "line ", "q_pan_rad", "not finite"]),
     ("log-inf", "identify {inf.csv}", 2, ["inf.csv", "line ", "q_pan_rad", "not finite"]),
     ("log-gzip-named-csv", "identify {gzip.csv}", 2, ["gzip.csv"]),
+    ("log-current-past-the-margin", "identify {past_edge_current.csv}", 2, ["past_edge_current.csv", "i_pan_A", "-2.0045"]),
     ("log-current-beyond-its-sensor", "identify {huge_current.csv}", 2, ["huge_current.csv", "i_pan_A", "data row 101", "range +-2 A"]),
     ("validate-current-beyond-its-sensor", "validate {huge_current.csv} --params {params}", 2, ["huge_current.csv", "i_pan_A", "data row 101"]),
     ("log-voltage-beyond-its-sensor", "identify {huge_voltage.csv}", 2, ["huge_voltage.csv", "v_tilt_V", "data row 101", "range +-15 V"]),
@@ -328,19 +333,31 @@ def test_cut_last_row_is_a_warning_and_exit_0(files):
 
 
 def test_the_sensors_extreme_readings_are_taken(files):
-    """The range check's other branch: -2 A and 2 A - one ADC step, what the 10-bit +-2 A
-    sensor reads at its ends, are kept (exit 0)."""
+    """The range check's other branch: -2.0043 A (within the sensor's 2 A, one ADC step of
+    3.9 mA and the firmware's half mA; -2.0045 A is refused above) and 2 A - one step are
+    kept (exit 0)."""
     result = invoke("identify", files / "edge_current.csv", "--method", "ls")
     assert result.exit_code == 0, result.stderr
 
 
-def test_validate_names_a_joint_without_a_usable_row(files):
-    """The pan never moved: validate scores the tilt and says the pan has no usable row
-    (it called it passive, with an error of 0, before)."""
-    result = invoke("validate", files / "pan_still.csv", "--params", files.params)
+def test_validate_leaves_out_a_set_that_is_not_finite_and_scores_the_rest(files):
+    """A params file with LS not finite (written with --force) and WLS finite: validate
+    says LS is left out (a warning naming the file, method and parameter) and scores WLS."""
+    result = invoke("validate", files.run, "--params", files / "params_nan_and_finite.yaml")
+    assert result.exit_code == 0, result.stderr
+    assert "methods.ls: ZZ1R = nan is not finite" in result.stderr and "left out" in result.stderr
+    assert ":WLS" in result.stdout and ":LS " not in result.stdout
+
+
+def test_validate_names_a_joint_without_a_usable_row(files, tmp_path):
+    """The pan never moved: validate scores the tilt and says the pan has no usable row, in
+    its table and its report (it called it passive, with an error of 0, before)."""
+    page = tmp_path / "v.html"
+    result = invoke("validate", files / "pan_still.csv", "--params", files.params, "--report", page)
     assert result.exit_code == 0, result.stderr
     rows = [x for x in result.stdout.splitlines() if "params.yaml:LS" in x]
     assert rows and all("no usable row" in x and "passive" not in x for x in rows), result.stdout
+    assert "pan no usable row" in page.read_text()
 
 
 def test_a_header_robot_source_is_found_beside_the_log(files, tmp_path):
@@ -405,3 +422,27 @@ def test_the_real_entry_point_prints_one_line(files):
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and proc.stderr.startswith(ERROR_PREFIX)
     assert "Traceback" not in proc.stderr
+
+
+def test_the_header_period_is_the_firmware_tick_to_its_microsecond():
+    """The firmware's INFO carries its tick in whole microseconds: a robot of 1/60 s
+    (sample_period 0.0166667) reports 0.016667, which capture accepts (within 0.5 us) and
+    identify must read; 0.03 against a 0.015 s tick is refused (the matrix above)."""
+    from guardid.errors import LogFormatError
+    from guardid.identify.runs import _sample_period
+
+    header = {"sample_period_s": 0.0166667, "firmware": {"tick_period": 0.016667}}
+    assert _sample_period("x.csv", header, None) == 0.0166667
+    header = {"sample_period_s": 0.0166667, "firmware": {"tick_period": 0.016668}}
+    with pytest.raises(LogFormatError, match="tick_period"):
+        _sample_period("x.csv", header, None)
+
+
+def test_a_folder_beside_the_log_does_not_hide_a_shipped_robot(files, tmp_path):
+    """A log whose header names a shipped robot by name (``guard``, as simulate's logs do)
+    in a folder that holds a folder of that name: the shipped robot, not the folder."""
+    (tmp_path / "guard").mkdir()
+    log = tmp_path / "run.csv"
+    log.write_text(_header_robot(files.run.read_text(), "guard", Path("guard")))
+    result = invoke("identify", log, "--method", "ls")
+    assert result.exit_code == 0, result.stderr

@@ -22,10 +22,11 @@ def _robot_for(run, robot_opt):
     if robot_opt:
         return load_robot(spec)
     path = Path(str(spec))
+    a_file = len(path.parts) > 1 or path.suffix in (".yaml", ".yml", ".urdf")
     beside = Path(str(run.path)).parent / path  # a relative path: from the log's folder
-    if not path.exists() and not path.is_absolute() and beside.exists():
+    if a_file and not path.exists() and not path.is_absolute() and beside.is_file():
         path = beside
-    if not path.exists():  # a shipped robot by name, or a YAML that is not here
+    if not path.is_file():  # a shipped robot by name, or a YAML that is not here
         path = Path(path.stem) if path.suffix in (".yaml", ".yml", ".urdf") else path
     try:
         return load_robot(str(path))
@@ -641,6 +642,9 @@ def scored(logs, params_paths, robot, cutoff, parallel_hz, foreign, keep: dict, 
         cutoff_hz=cutoff, parallel_filter_hz=parallel_hz
     )
     sets = [s for path in params_paths for s in v.load_sets(path, description)]
+    sets, left_out = v.finite_sets(sets)
+    for why in left_out:
+        click.echo(f"guardid: warning: {why}: left out", err=True)
     current_units = bool(first) and first[1].get("torque_unit") not in ("N m", None)
     if simulate and current_units:
         unit = first[1].get("torque_unit")

@@ -73,11 +73,17 @@ def check_log_robot(run, description, robot_from: str):
     return run
 
 
+SENT_QUANTUM = 0.5e-3
+"""Half the unit in which the firmware sends a current or voltage (whole mA or mV, rounded)
+[A | V]: a reading at the ADC's end may be reported that much beyond the range."""
+
+
 def check_sensor_ranges(run, description) -> None:
     """Refuse a guardid log (one with counts) holding a current or voltage beyond what the
-    described sensor reads: its ADC spans +-range [A | V], one step (2 range / 2^adc_bits)
-    of margin for the converted value's rounding. Names the column, the data row (1 = the
-    first) and the range: a corrupt value (1e300 A) would otherwise reach the fit."""
+    described sensor reads: its ADC spans +-range [A | V]; the margin is one ADC step (2
+    range / 2^adc_bits) and the firmware's rounding to whole mA or mV (:data:`SENT_QUANTUM`).
+    Names the column, the data row (1 = the first) and the range: a corrupt value (1e300 A)
+    would otherwise reach the fit."""
     if run.counts is None or getattr(description, "joints", None) is None:
         return
     for key, unit, column in (("current", "A", "i"), ("voltage", "V", "v")):
@@ -89,7 +95,7 @@ def check_sensor_ranges(run, description) -> None:
             sensor = getattr(joint, f"{key}_sensor")
             if sensor is None:
                 continue
-            most = sensor.range * (1.0 + 2.0 / 2**sensor.adc_bits)
+            most = sensor.range * (1.0 + 2.0 / 2**sensor.adc_bits) + SENT_QUANTUM
             bad = np.flatnonzero(np.abs(values[:, j]) > most)
             if bad.size:
                 k = int(bad[0])

@@ -200,7 +200,7 @@ def _sample_period(path, header, given) -> float:
     firmware = header.get("firmware")
     tick = firmware.get("tick_period") if isinstance(firmware, dict) else None
     if not given and isinstance(tick, (int, float)) and not isinstance(tick, bool):
-        if abs(float(tick) - float(value)) > 1e-6 * float(tick):
+        if abs(float(tick) - float(value)) > 0.5e-6 + 1e-9:  # INFO: whole microseconds
             raise LogFormatError(
                 f"{path}: header: sample_period_s {value:g} s, but the firmware's tick_period "
                 f"{tick:g} s (the header edited? each row is one tick)"

@@ -231,37 +231,38 @@ def _yaml(path) -> dict:
 
 
 def load_sets(path, description) -> list[ParameterSet]:
-    """Parameter sets of ``path``: a params file (one per method) or a reference file;
-    each set's values finite (:func:`check_finite`: what validate scores and simulate runs)."""
+    """Parameter sets of ``path``: a params file (one per method) or a reference file."""
     from guardid.identify.report import read_params
 
     data = _yaml(path)
     if "guardid-reference" in data:
-        sets = [reference_set(path, description)]
-    else:
-        data = read_params(path)
-        if not data["methods"]:
-            raise ConfigError(
-                f"{path}: methods: empty (no estimate to score; rerun guardid identify)"
-            )
-        sets = params_sets(path, data, description)
-    for s in sets:
-        check_finite(path, s)
-    return sets
+        return [reference_set(path, description)]
+    data = read_params(path)
+    if not data["methods"]:
+        raise ConfigError(f"{path}: methods: empty (no estimate to score; rerun guardid identify)")
+    return params_sets(path, data, description)
 
 
-def check_finite(path, parameter_set) -> None:
-    """One-line ConfigError naming ``path``, the set's method and the first parameter whose
-    value is not finite (an untrusted fit written with ``--force``): no model to score or
-    run with it."""
+def not_finite(parameter_set) -> str | None:
+    """Why ``parameter_set`` cannot be scored or run (its file, method and the first
+    parameter whose value is not finite: an untrusted fit written with ``--force``), or
+    None when every value is finite."""
     bad = [n for n, v in parameter_set.values.items() if not math.isfinite(float(v))]
-    if bad:
-        method = parameter_set.label.rsplit(":", 1)[-1].lower()
-        raise ConfigError(
-            f"{path}: methods.{method}: {bad[0]} = {parameter_set.values[bad[0]]!r} is not "
-            "finite (a fit that could not be trusted, written with --force?): no model to "
-            "score or run"
-        )
+    if not bad:
+        return None
+    path, _, method = parameter_set.label.rpartition(":")
+    return (f"{path}: methods.{method.lower()}: {bad[0]} = {parameter_set.values[bad[0]]!r} is "
+            "not finite (a fit that could not be trusted, written with --force?)")  # fmt: skip
+
+
+def finite_sets(sets) -> tuple[list[ParameterSet], list[str]]:
+    """(the sets whose values are all finite, why each other one is left out); a one-line
+    ConfigError when none is left."""
+    kept = [s for s in sets if not_finite(s) is None]
+    why = [not_finite(s) for s in sets if not_finite(s) is not None]
+    if sets and not kept:
+        raise ConfigError(f"{why[0]}: no parameter set to score or run")
+    return kept, why
 
 
 def first_params(paths):

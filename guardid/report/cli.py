@@ -56,9 +56,10 @@ def validate_page(description, names, sets, keep, current_units: bool, loaded=()
         name = str(name)
         mine = {s.label: s for s in keep["scores"] if s.run == name}
         m = cond.mask
-        passive = tuple(
-            j for j, p in zip(joints, next(iter(mine.values())).passive, strict=True) if p
-        )
+        first = next(iter(mine.values()))
+        passive = tuple(j for j, p in zip(joints, first.passive, strict=True) if p)
+        flags = first.rowless if first.rowless is not None else [False] * len(joints)
+        rowless = tuple(j for j, r in zip(joints, flags, strict=True) if r)
         runs.append(
             ValidationRun(
                 name=name,
@@ -67,6 +68,7 @@ def validate_page(description, names, sets, keep, current_units: bool, loaded=()
                 preds={s.label: keep["preds"][(name, s.label)] for s in sets},
                 scores={k: (v.stacked, v.rms) for k, v in mine.items()},
                 passive=passive,
+                rowless=rowless,
             )  # fmt: skip
         )
     units = joint_units(description, current_units)

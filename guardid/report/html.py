@@ -434,7 +434,8 @@ class ValidationRun:
     ``t_rows`` (M,) [s] and ``y`` (M, n) the scored rows' times and measured effort;
     ``preds``: parameter-set label -> predicted effort (M, n); ``scores``: label ->
     (stacked relative rms error [-], per-joint rms error in the joint's unit (n,));
-    ``passive``: names of the joints whose effort is negligible.
+    ``passive``: names of the joints whose effort is negligible; ``rowless``: names of the
+    joints none of whose rows was usable (not scored).
     """
 
     name: str
@@ -443,6 +444,7 @@ class ValidationRun:
     preds: dict[str, np.ndarray]
     scores: dict[str, tuple[float, np.ndarray]]
     passive: tuple[str, ...] = ()
+    rowless: tuple[str, ...] = ()
 
 
 def validation_report(
@@ -467,7 +469,7 @@ def validation_report(
         for k in labels:
             rel, per_joint = r.scores[k]
             detail = ", ".join(
-                f"{j} {_fmt(v, 3)} {u}"
+                f"{j} no usable row" if j in r.rowless else f"{j} {_fmt(v, 3)} {u}"
                 for j, v, u in zip(joint_names, per_joint, effort_units, strict=True)
             )
             cells.append(f"<td>{_fmt(100 * rel, 3)} %<br><span class='z'>{detail}</span></td>")

@@ -56,12 +56,22 @@ def pick_set(path, description, method: str | None):
 
     sets = load_sets(path, description)
     if method is None:
-        return sets[0]
+        return _finite(sets[0])
     for s in sets:
         if s.label.rsplit(":", 1)[-1].lower() == method.lower():
-            return s
+            return _finite(s)
     known = ", ".join(s.label.rsplit(":", 1)[-1].lower() for s in sets)
     raise ConfigError(f"{path}: method {method!r}: not in the file (known: {known})")
+
+
+def _finite(chosen):
+    """``chosen`` (a ParameterSet) when its values are finite, else a one-line ConfigError."""
+    from guardid.identify.validation import not_finite
+
+    why = not_finite(chosen)
+    if why is not None:
+        raise ConfigError(f"{why}: no robot to simulate (give another --method)")
+    return chosen
 
 
 def _check_robot(path, description, option: str) -> None:
