@@ -341,3 +341,20 @@ def test_error_exit_without_traceback_in_a_real_process(small_csv):
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
     assert "small.csv" in proc.stderr and "q2" in proc.stderr
+
+
+def test_runs_of_different_rates_are_not_stacked(tmp_path):
+    """Two real DFKI runs stack into one fit (their median periods agree within 1 % though
+    the logs jitter); one of them at every second row (twice the period) is refused in one
+    line naming both logs: the filter's and the rows' windows are counted in the first
+    run's samples."""
+    half = tmp_path / "half.csv"
+    lines = _dfki("trajectory_01.csv").read_text().splitlines(keepends=True)
+    half.write_text("".join([lines[0], *lines[1::2]]))
+    both = cli("identify", _dfki("trajectory_00.csv"), _dfki("trajectory_01.csv"), "--robot",
+               "dfki_double_pendulum", "--columns", DFKI_COLUMNS, "--method", "ls")  # fmt: skip
+    assert both.exit_code == 0, both.output
+    res = cli("identify", _dfki("trajectory_00.csv"), half, "--robot", "dfki_double_pendulum",
+              "--columns", DFKI_COLUMNS, "--method", "ls")  # fmt: skip
+    assert res.exit_code == 2, res.output
+    assert "half.csv" in res.output and "trajectory_00.csv" in res.output and "rates" in res.output

@@ -166,6 +166,27 @@ def check_distinct(runs) -> None:
                 )
 
 
+RATE_TOLERANCE = 0.01
+"""Runs stacked into one fit may differ this much in median sample period [-] (jittery
+foreign logs); beyond, they are refused (:func:`check_same_rate`)."""
+
+
+def check_same_rate(runs) -> None:
+    """Refuse runs of different sample periods in one fit: the filter's window, the row
+    spacing and the window over which the rows share their noise are counted in samples
+    from the first run's period, so another run's would be off (identify them apart)."""
+    timed = [(r, float(np.median(np.diff(np.asarray(r.t, dtype=float))))) for r in runs
+             if len(r.t) > 1]  # fmt: skip
+    for run, period in timed[1:]:
+        first, first_period = timed[0]
+        if abs(period - first_period) > RATE_TOLERANCE * first_period:
+            raise ConfigError(
+                f"{run.path}: a sample period of {period:.6g} s, {first.path}'s is "
+                f"{first_period:.6g} s: logs of different rates are not stacked into one fit "
+                "(identify them apart)"
+            )
+
+
 def check_params_robot(params_path, params: dict, description, robot_opt) -> None:
     """``validate``: the params file's robot must be the one of --robot / the logs."""
     named = params.get("robot")

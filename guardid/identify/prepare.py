@@ -15,7 +15,7 @@ from dataclasses import replace
 import numpy as np
 
 from guardid.errors import GuardidError
-from guardid.identify.checks import check_log_robot
+from guardid.identify.checks import check_log_robot, check_same_rate
 from guardid.identify.segments import split_runs
 
 
@@ -30,6 +30,7 @@ def prepared_runs(runs, description, options=None):
     if not runs:
         return runs, None
     runs = [current_on_adc_levels(r, description) for r in runs]
+    check_same_rate(runs)
     conditioning = options.conditioning if options is not None else None
     return split_at_gaps(runs, conditioning.cutoff_hz if conditioning is not None else None)
 
