@@ -12,7 +12,7 @@ import click
 
 from guardid.commands._status import end_line, forget_line, line_open
 from guardid.commands._types import POSITIVE
-from guardid.commands.outputs import force_option, output_option
+from guardid.commands.outputs import check_room, force_option, output_option
 from guardid.errors import ConfigError
 
 TRACKING_PERIOD_S = 5.0
@@ -226,7 +226,8 @@ def _capture(
         duration = UNTIL_STD_CAP_S
     if duration is None:
         duration = (periods or 1) * trajectory.period
-    _check_room(output, duration, description)
+    check_room(output, duration, description.sample_period,
+               ROW_BYTES_BASE + ROW_BYTES_PER_JOINT * len(description.joints))  # fmt: skip
     check_trajectory(trajectory, description, duration, trajectory_path)
     feedforward = _feedforward(feedforward_path, description, trajectory)
     tracker = _tracker(online, description, trajectory, online_effort)
@@ -366,43 +367,6 @@ def _feedforward(path, description, trajectory):
 ROW_BYTES_BASE, ROW_BYTES_PER_JOINT = 30, 60
 """A log row's size at most [bytes]: tick, time and status, plus per joint counts, angle,
 voltage, current and setpoint as :class:`guardid.log.LogWriter` formats them."""
-
-
-def _check_room(output, duration_s: float, description, row_bytes: float | None = None) -> None:
-    """ConfigError when the log of a ``duration_s`` [s] capture would not fit in the free
-    space of ``output``'s file system (``--duration 1e9``: terabytes). Not for a device or
-    a pipe given with --force (the log goes elsewhere). ``row_bytes``: a row's size at most
-    [bytes] (default: a capture log's, :data:`ROW_BYTES_BASE` and
-    :data:`ROW_BYTES_PER_JOINT`)."""
-    import shutil
-    import stat
-    from pathlib import Path
-
-    if os.path.exists(output) and not stat.S_ISREG(os.stat(output).st_mode):
-        return
-    folder = Path(output).parent
-    try:
-        free = shutil.disk_usage(folder).free
-    except OSError:
-        return  # checked by check_output already; nothing more to say
-    rows = duration_s / description.sample_period
-    if row_bytes is None:
-        row_bytes = ROW_BYTES_BASE + ROW_BYTES_PER_JOINT * len(description.joints)
-    need = rows * row_bytes
-    if need > free:
-        raise ConfigError(
-            f"--duration {duration_s:g} s: the log {output} would need about "
-            f"{_size(need)}, {_size(free)} free in {folder}"
-        )
-
-
-def _size(n_bytes: float) -> str:
-    unit = "B"
-    for unit in ("B", "kB", "MB", "GB", "TB"):
-        if n_bytes < 1000 or unit == "TB":
-            break
-        n_bytes /= 1000
-    return f"{n_bytes:.3g} {unit}"
 
 
 def _progress(c: dict) -> None:

@@ -227,3 +227,34 @@ def write_texts(items: Iterable[tuple[object, str, str]]) -> None:
 def robot_file(robot) -> str | None:
     """``--robot``'s value when it names an existing file (not a shipped robot), else None."""
     return str(robot) if robot and Path(str(robot)).is_file() else None
+
+
+def check_room(output, duration_s: float, sample_period_s: float, row_bytes: float) -> None:
+    """ConfigError when a ``duration_s`` [s] log of one row per ``sample_period_s`` [s], each
+    at most ``row_bytes`` [bytes], would not fit in the free space of ``output``'s file system
+    (``--duration 1e9``: terabytes). Not for a device or a pipe given with --force (the log
+    goes elsewhere)."""
+    import shutil
+
+    if os.path.exists(output) and not stat.S_ISREG(os.stat(output).st_mode):
+        return
+    folder = Path(output).parent
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError:
+        return  # checked by check_output already; nothing more to say
+    need = duration_s / sample_period_s * row_bytes
+    if need > free:
+        raise ConfigError(
+            f"--duration {duration_s:g} s: the log {output} would need about "
+            f"{_size(need)}, {_size(free)} free in {folder}"
+        )
+
+
+def _size(n_bytes: float) -> str:
+    unit = "B"
+    for unit in ("B", "kB", "MB", "GB", "TB"):
+        if n_bytes < 1000 or unit == "TB":
+            break
+        n_bytes /= 1000
+    return f"{n_bytes:.3g} {unit}"

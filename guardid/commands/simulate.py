@@ -137,8 +137,7 @@ def simulate(
     the period ending at t, encoder counts, q_sensed [rad], sensed mean voltage [V] and
     current [A], and the setpoint [rad] the PID used at t.
     """
-    from guardid.commands.capture import _check_room
-    from guardid.commands.outputs import check_output, replacing, robot_file
+    from guardid.commands.outputs import check_output, check_room, replacing, robot_file
     from guardid.plant import PayloadChange
 
     inputs = [("--robot", robot_file(robot))] + ([("--params", params_path)] if params_path else [])
@@ -181,7 +180,9 @@ def simulate(
             f"--duration {duration:g} s: shorter than one tick ({description.sample_period:g} s)"
         )
     n_j = len(getattr(description, "joints", ()) or ())
-    _check_room(output, duration, description, row_bytes=ROW_BYTES_BASE + ROW_BYTES_PER_JOINT * n_j)
+    check_room(
+        output, duration, description.sample_period, ROW_BYTES_BASE + ROW_BYTES_PER_JOINT * n_j
+    )
     head = [f"# robot: {description.name}", f"# seed: {seed}",
             f"# sample_period_s: {description.sample_period}",
             "# units: rad, rad/s, A, V; row k = tick k (t = k T), currents/voltages are means"

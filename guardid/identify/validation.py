@@ -258,8 +258,9 @@ def not_finite(parameter_set) -> str | None:
 def finite_sets(sets) -> tuple[list[ParameterSet], list[str]]:
     """(the sets whose values are all finite, why each other one is left out); a one-line
     ConfigError when none is left."""
-    kept = [s for s in sets if not_finite(s) is None]
-    why = [not_finite(s) for s in sets if not_finite(s) is not None]
+    reasons = [(s, not_finite(s)) for s in sets]
+    kept = [s for s, reason in reasons if reason is None]
+    why = [reason for _, reason in reasons if reason is not None]
     if sets and not kept:
         raise ConfigError(f"{why[0]}: no parameter set to score or run")
     return kept, why
