@@ -54,6 +54,26 @@ def test_first_violation_of_velocity_worked_by_hand():
     assert "51.6 deg/s" in bad.describe()  # 0.9 rad/s
 
 
+def _pan_velocity_negative_first() -> SumOfSines:
+    """pan = 0.5 sin(2 t + pi/2): qd = cos(2 t + pi/2) = -1.0 sin(2 t) [rad/s] reaches
+    -0.9 first, at t* = asin(0.9) / 2 = 0.5599 s, and +0.9 only at (pi + asin(0.9)) / 2 =
+    2.1307 s; qdd peaks at 2.0 < 3 rad/s^2; pan has no position limit; tilt stands still."""
+    f = 2.0 / (2 * math.pi)
+    return SumOfSines([[0.5], [0.0]], [[f], [f]], [[math.pi / 2], [0.0]], [0.0, 0.2])
+
+
+def test_first_violation_of_velocity_on_the_negative_side_worked_by_hand():
+    """Promise: the velocity limit binds both ways, so the first crossing is the negative
+    one at t* = asin(0.9) / 2 = 0.5599 s, reported with its sign."""
+    bad = first_violation(_pan_velocity_negative_first(), GUARD)
+    t_star = math.asin(0.9) / 2
+    assert (bad.joint, bad.kind, bad.limit) == ("pan", "velocity", -PAN_VEL)
+    assert t_star <= bad.time_s <= t_star + 1e-3  # the first 1 ms grid point past t*
+    # |qdd| <= 2 rad/s^2, so one 1 ms step goes at most 2e-3 rad/s past -0.9
+    assert -PAN_VEL - 2e-3 - 1e-12 < bad.value < -PAN_VEL
+    assert "velocity -51.6 deg/s at t = 0.560 s" in bad.describe()
+
+
 def test_first_violation_agrees_with_excites_limit_report(tmp_path):
     traj = SumOfSines.load(gentle_trajectory(tmp_path / "t.yaml"))
     assert first_violation(traj, GUARD) is None and all(u.within for u in limit_usage(traj, GUARD))
@@ -91,6 +111,18 @@ def test_a_trajectory_ten_times_too_large_is_refused_before_anything_opens(tmp_p
         assert "big.yaml: joint " in line and " at t = " in line and "beyond its limit" in line
         assert "nothing moved" in line
         assert robots == [] and not traj.with_suffix(".csv").exists()
+
+
+def test_a_trajectory_over_the_velocity_limit_backwards_is_refused(tmp_path):
+    """Promise: a 2 s capture whose pan speed passes -0.9 rad/s at 0.560 s (and +0.9 only
+    after 2.13 s, beyond the capture) is refused before the port opens: nothing moves."""
+    traj = tmp_path / "back.yaml"
+    _pan_velocity_negative_first().save(traj)
+    res, robots = _capture(traj, port="sim://guard")
+    line = _error(res)
+    assert "back.yaml: joint pan: velocity -51.6 deg/s at t = 0.560 s" in line, line
+    assert "nothing moved" in line
+    assert robots == [] and not traj.with_suffix(".csv").exists()
 
 
 @pytest.mark.parametrize("n", [1, 3])

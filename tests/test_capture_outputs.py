@@ -1,5 +1,6 @@
 """Recorded data is never lost or overwritten (capture, identify, simulate outputs), and a
-log write error (disk full) idles the robot first and keeps every completed row."""
+log write error (disk full) or any other error mid-capture idles the robot first and
+keeps every completed row."""
 
 from __future__ import annotations
 
@@ -211,6 +212,63 @@ def test_disk_full_mid_capture_idles_first_and_keeps_every_row(
         assert footer == "" and "no footer" in line
     ticks = [int(r[0]) for r in rows]
     assert ticks == list(range(ticks[0], ticks[0] + ok_rows)) if rows else True
+
+
+class RowBug(RuntimeError):
+    """A bug in a caller's per-row work (e.g. an online tracker's), not a link or disk error."""
+
+
+def test_any_other_error_mid_capture_idles_first_then_writes_the_footer(tmp_path, monkeypatch):
+    """Promise: whatever else goes wrong mid-capture (here the on_row callback raises at
+    the 50th row), the error propagates unchanged, the motors are put idle and the stream
+    stopped before the footer is written, and the footer says what ended the run. 50 rows
+    are in the log: each row is written before on_row sees it."""
+    from guardid.capture.run import capture
+    from guardid.excitation.sines import SumOfSines
+    from guardid.link import Session, open_port
+    from guardid.log import read_log
+    from guardid.robot import load_robot
+
+    guard = load_robot("guard")
+    traj = SumOfSines.load(gentle_trajectory(tmp_path / "traj.yaml"))
+    events = []
+    robots = []
+    write = DiskFull(ok_rows=10**9, events=events)  # never full: only records the footer
+
+    def write_noting_the_robot(fd, data) -> int:
+        if bytes(data).startswith(b"# footer:"):  # the robot's state as the footer goes out
+            events.append(("robot", robots[0].fw.mode, robots[0].fw.streaming))
+        return write(fd, data)
+
+    monkeypatch.setattr(LogWriter, "_write", staticmethod(write_noting_the_robot))
+    seen = []
+
+    def on_row(t, q, v, i):
+        seen.append(t)
+        if len(seen) == 50:
+            raise RowBug("row 50 went wrong")
+
+    log = tmp_path / "run.csv"
+    with witnessed(events=events) as made:
+        port = open_port("sim://guard?seed=3")
+        robots.extend(made)
+        try:
+            session = Session(port)
+            session.handshake()
+            with pytest.raises(RowBug, match="row 50 went wrong"):
+                capture(session, guard, traj, 3.0, log, {"robot": "guard"}, on_row=on_row)
+            (robot,) = robots
+            # the motors first, the file after; nothing else written once the footer is
+            assert robot.fw.mode == IDLE and not robot.fw.streaming
+            assert ("robot", IDLE, False) in events, events
+            assert events.index("idle") < events.index("footer"), events
+            assert robot.moving_ticks > 0  # it did move before the error
+        finally:
+            port.close()
+    assert len(parse_rows(log, log_fields())) == 50
+    footer = read_log(log).footer
+    assert footer["rows"] == 50
+    assert footer["ended"] == "error: RowBug: row 50 went wrong"
 
 
 def test_dev_full_is_one_line_and_the_robot_stays_idle(tmp_path):

@@ -13,7 +13,9 @@ and before its last recovered frame, so each one shows up exactly once as a sequ
 
 from __future__ import annotations
 
+import json
 import random
+from pathlib import Path
 
 from guardid import protocol as P
 from guardid.protocol.vectors import random_message
@@ -146,3 +148,42 @@ def test_idle_delimiters_are_not_errors():
     parser = P.FrameParser()
     assert len(parser.feed(b"\x00\x00" + P.encode(P.Hello(), 0) + b"\x00\x00")) == 1
     assert parser.stats.errors == 0
+
+
+# The golden bad frames (firmware_proto/test_vectors.json, one per rejection reason), each
+# with the counter that names its reason; test_c_bad_vectors holds the C parser to them.
+BAD_KINDS = {
+    "cobs": "cobs_errors",
+    "short": "short_frames",
+    "crc": "crc_errors",
+    "version": "bad_version",
+    "unknown_id": "unknown_id",
+    "length": "bad_length",
+}
+
+
+def test_streaming_parser_drops_every_golden_bad_frame():
+    """Promise: FrameParser.feed yields no frame for a rejected segment and counts it once
+    under its own reason, as the C parser does. The 'version' vector is a well-formed PING
+    (msg 2, seq 7, nonce 1234, CRC right) whose version byte is 2: only the version check
+    stops it. Each vector goes to a fresh parser, then to one that has just parsed a PING
+    (seq 6: the same message kind and length), which takes the scanned path of that kind."""
+    vectors = json.loads(
+        (Path(__file__).resolve().parents[1] / "firmware_proto/test_vectors.json").read_text()
+    )["bad_frames"]
+    assert sorted(v["kind"] for v in vectors) == sorted(BAD_KINDS)
+    for vec in vectors:
+        wire = bytes.fromhex(vec["hex"])
+        fresh = P.FrameParser()
+        assert fresh.feed(wire) == [], vec
+        st = fresh.stats
+        assert getattr(st, BAD_KINDS[vec["kind"]]) == 1 and st.errors == 1, (vec, st)
+        assert st.frames == 0 and st.seq_gaps == 0, (vec, st)
+
+        primed = P.FrameParser()
+        ping = P.Frame(P.Ping.MSG_ID, 6, P.Ping(1234))
+        assert primed.feed(P.encode(ping.msg, ping.seq)) == [ping]
+        assert primed.feed(wire) == [], vec
+        st = primed.stats
+        assert getattr(st, BAD_KINDS[vec["kind"]]) == 1 and st.errors == 1, (vec, st)
+        assert st.frames == 1 and st.seq_gaps == 0, (vec, st)
