@@ -404,3 +404,93 @@ def test_the_rows_filter_is_the_butterworth_then_the_mean_of_m_ticks(m):
     got = sosfilt(mom.row_filter(fc, fs, mom.DEFAULT_ORDER, m), x)
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max())
     assert got.sum() == pytest.approx(1.0, rel=1e-6)  # unit gain at DC: the equation's scale
+
+
+def test_offset_column_is_the_period_length():
+    """A friction offset Fo is a constant torque: its integral over a period is Fo T, so
+    the Fo column of joint j's period equation is T on every period whose terms lie in the
+    log (with the stencil's kink and slope corrections too: a constant torque does not
+    step at the ticks), and 0 in the other joint's equation. The guard with its offsets
+    declared (``offset: 0.05``, modelled), on a motion that never stops."""
+    from dataclasses import replace
+
+    guard = load_robot("guard")
+    joints = tuple(
+        replace(j, friction=replace(j.friction, offset=0.05, offset_modelled=True))
+        for j in guard.joints
+    )
+    model = build_model(replace(guard, joints=joints))
+    names = list(model.base.names)
+    period = guard.sample_period
+    t = np.arange(400) * period
+    q = np.column_stack([0.5 * t + 0.1 * np.sin(2 * np.pi * 0.4 * t),
+                         0.3 * t + 0.05 * np.sin(2 * np.pi * 0.7 * t)])  # fmt: skip
+    v = np.column_stack([0.5 + 0.1 * 2 * np.pi * 0.4 * np.cos(2 * np.pi * 0.4 * t),
+                         0.3 + 0.05 * 2 * np.pi * 0.7 * np.cos(2 * np.pi * 0.7 * t)])  # fmt: skip
+    for kink, inside in ((None, slice(2, -1)), (3, slice(3, -2))):
+        phi = mom.period_regressor(model, q, v, period, kink)
+        for j in range(2):
+            col = names.index(f"Fo{j + 1}")
+            np.testing.assert_allclose(phi[inside, j, col], period, rtol=1e-12, atol=0)
+            assert np.all(phi[:, 1 - j, col] == 0.0)
+
+
+def test_viscous_column_carries_the_viscous_torques_stencil_error():
+    """The Fv column of a period is the integral of qdot over it, q_k - q_(k-1), plus (with
+    the stencil's corrections) the change of the three-point stencil's momentum error that
+    the viscous torque Fv qdot(t) makes: that error is the stencil's error on X(t) =
+    integral of q (X'' = qdot), g_k = (X_(k+1) - X_(k-1)) / (2 T) - q_k, and enters the
+    regressor as + Fv (g_k - g_(k-1)) (imp = change of M v_hat - change of M (v_hat - v) +
+    rest, the viscous torque's share of M (v - v_hat) being Fv g). Closed form on a motion
+    whose acceleration is constant over each period (a voltage held per period, the back-EMF
+    neglected): q and the period integrals of q exact from the accelerations. The code takes
+    the slope of qdot over a period from the stencil's velocities (T a_i ~ v_hat_i -
+    v_hat_(i-1)), off by O(T^5 a'''), about 1 % of the slope's share here: within 5 % of
+    that share; exactly (1e-12) the hand-derived three-point formula on v_hat (weights
+    W = [-1/4, 1/4] on the period means, U = [-1/24, -1/24] on the slopes, of the periods
+    ending at ticks k and k+1, worked out from the Taylor expansion)."""
+    desc = load_robot("guard")
+    model = build_model(desc)
+    names = list(model.base.names)
+    period = desc.sample_period
+    n = 400
+    mid = (np.arange(n) - 0.5) * period  # period i ends at tick i
+    w = 2 * np.pi * mid
+    acc = np.column_stack([4.0 * np.sin(1.3 * w) + 2.0 * np.sin(2.9 * w + 1),
+                           3.0 * np.cos(1.7 * w) - 1.5 * np.sin(3.3 * w)])  # fmt: skip
+    q, v, integral_q = np.zeros((n, 2)), np.zeros((n, 2)), np.zeros((n, 2))
+    q[0], v[0] = [0.1, -0.2], [1.0, 0.8]
+    for i in range(1, n):
+        q[i] = q[i - 1] + period * v[i - 1] + period**2 * acc[i] / 2
+        integral_q[i] = period * q[i - 1] + period**2 * v[i - 1] / 2 + period**3 * acc[i] / 6
+        v[i] = v[i - 1] + period * acc[i]
+    assert v.min() > 0.3  # moving one way: the Coulomb column's direction is plain
+    v_hat = np.zeros_like(q)
+    v_hat[1:-1] = (q[2:] - q[:-2]) / (2 * period)
+    dq = np.zeros_like(q)
+    dq[1:] = q[1:] - q[:-1]
+    g = np.zeros_like(q)
+    g[1:-1] = (integral_q[1:-1] + integral_q[2:]) / (2 * period) - q[1:-1]
+    truth = dq.copy()
+    truth[1:] += g[1:] - g[:-1]
+    # the slope's share by hand on the true velocities, and the formula on v_hat
+    slope = np.zeros_like(q)
+    slope[1:-1] = -period / 24 * (v[2:] - v[:-2])
+    slope_hat = np.zeros_like(q)
+    slope_hat[1:-1] = -period / 24 * (v_hat[2:] - v_hat[:-2])
+    kink = np.zeros_like(q)
+    kink[1:-1] = (dq[2:] - dq[1:-1]) / 4
+    formula = dq.copy()
+    formula[1:] += kink[1:] - kink[:-1] + slope_hat[1:] - slope_hat[:-1]
+    share = np.abs(np.diff(slope, axis=0)[3:-2]).max()
+    assert share > 1e-5
+    inside = slice(3, -2)  # the corrections' reach inside the log
+    plain = mom.period_regressor(model, q, v_hat, period, None)
+    corrected = mom.period_regressor(model, q, v_hat, period, 3)
+    for j in range(2):
+        col = names.index(f"Fv{j + 1}")
+        np.testing.assert_allclose(plain[2:-1, j, col], dq[2:-1, j], rtol=1e-12, atol=0)
+        np.testing.assert_allclose(corrected[inside, j, col], truth[inside, j], rtol=0,
+                                   atol=0.05 * share)  # fmt: skip
+        np.testing.assert_allclose(corrected[inside, j, col], formula[inside, j], rtol=0,
+                                   atol=1e-12 * np.abs(formula[inside, j]).max())  # fmt: skip

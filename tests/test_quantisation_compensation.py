@@ -186,3 +186,44 @@ def test_rows_compensate_only_what_the_log_allows():
     r = _rows(bare, q, t)
     assert r.column_noise is None
     assert any("without an encoder" in n for n in r.cond.notes)
+
+
+def test_cross_moment_of_the_back_emf_slope_matches_a_monte_carlo():
+    """c_j = E[dA_j^T dy_j] (``quantisation_noise``'s second moment, summed over joint j's
+    usable rows): the rounding error reaches the impulses through the back-EMF slope term
+    -D (s_k - s_(k-1)) of the stencil's velocities, and the viscous column through the same
+    slope's + Fv share, so the Fv column's cross moment is about -D E[slope^2] < 0.
+    Independent truth: 200 fresh draws of e uniform over one count added to the counts of a
+    20 s run that never slows (no period changes its direction or its cut), the whole
+    momentum rows formed again (``condition_momentum``) and dA^T dy averaged over the draws
+    on every usable row. The estimate (100 draws of its own, another seed) lies within 4
+    standard errors of that mean (from the spread of the draws, both averages counted) for
+    every column; on the Fv columns, whose moment stands 10 standard errors clear of 0, the
+    sign is the Monte Carlo's."""
+    desc, t, q, res = _moving_run(20.0)
+    assert np.all(np.abs(np.diff(q, axis=0)).min(axis=0) > 2 * res)  # directions stay
+    model = build_model(desc)
+    gain = drive_gain(desc)
+    damping = mom.electrical_damping(desc, gain)
+    assert damping.min() > 0.0
+    kw = {"gain": gain, "cutoff_hz": 2.0, "stiction_threshold": 0.0}
+    cond, A, y = mom.condition_momentum(t, q, np.zeros_like(q), model, **kw)
+    _, c = mom.quantisation_noise(cond.momentum, model, res, damping, draws=100)
+    rng = np.random.default_rng(1)
+    draws = []
+    for _ in range(200):
+        q_e = q + (rng.random(q.shape) - 0.5) * res
+        cond_e, A_e, y_e = mom.condition_momentum(t, q_e, np.zeros_like(q), model, **kw)
+        np.testing.assert_array_equal(cond_e.joint_mask, cond.joint_mask)
+        draws.append(np.einsum("mja,mj->ja", A_e - A, y_e - y))
+    draws = np.array(draws)
+    mean = draws.mean(axis=0)
+    se = draws.std(axis=0, ddof=1) * np.sqrt(1 / 200 + 1 / 100)
+    floor = 1e-9 * np.abs(mean).max()  # the columns without noise (Coulomb, offset)
+    z = (c - mean) / (se + floor)
+    assert np.all(np.abs(z) <= 4.0), np.round(z, 1).tolist()
+    names = list(model.base.names)
+    for j in range(2):
+        fv = names.index(f"Fv{j + 1}")
+        assert mean[j, fv] < -10 * se[j, fv]
+        assert c[j, fv] < 0.0
