@@ -451,3 +451,28 @@ def test_untrusted_only_when_the_verdict_rests_on_an_unfinished_closed_loop_fit(
     assert trust_problems(ls, names, {"wls": wls, "iv": iv(False)}) == []
     (only,) = trust_problems(ls, names, {"iv": iv(False, stopped="the run: diverged at t = 1 s")})
     assert only.startswith("IV, the verdict's method, did not converge (the run: diverged at t")
+
+
+def test_an_unfinished_didim_as_the_verdicts_method_is_untrusted_too():
+    """trust_problems: the same promise for DIDIM as for IV (test above): a not-converged
+    DIDIM, the verdict's method (no WLS/LS ran), is a problem named with its stop reason;
+    beside WLS it is not; a converged DIDIM is not."""
+    from guardid.estimators import LeastSquares
+    from guardid.identify.pipeline import MethodResult
+    from guardid.identify.untrusted import trust_problems
+
+    rng = np.random.default_rng(4)
+    A = rng.normal(size=(200, 2, 2))
+    y = A @ np.array([1.0, 2.0]) + rng.normal(scale=0.1, size=(200, 2))
+    ls = LeastSquares().fit(A, y)
+    names = ("a", "b")
+
+    def didim(converged, **settings):
+        return MethodResult("didim", ls.theta_, ls.std_, converged=converged, settings=settings)
+
+    wls = MethodResult("wls", ls.theta_, ls.std_)
+    assert trust_problems(ls, names, {"didim": didim(True)}) == []
+    assert trust_problems(ls, names, {"wls": wls, "didim": didim(False)}) == []
+    stopped = "the run: diverged at t = 1 s"
+    (only,) = trust_problems(ls, names, {"didim": didim(False, stopped=stopped)})
+    assert only.startswith(f"DIDIM, the verdict's method, did not converge ({stopped})")

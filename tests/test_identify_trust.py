@@ -15,7 +15,7 @@ from guardid.dynamics import build_model
 from guardid.errors import ConfigError
 from guardid.identify import IdentifyOptions, identify, run_from_arrays
 from guardid.identify.pipeline import MethodResult
-from guardid.identify.trust import mark_not_converged, mass_matrix_along
+from guardid.identify.trust import impossible_values, mark_not_converged, mass_matrix_along
 from guardid.robot import load_robot
 from guardid.robot.loader import parse_robot
 
@@ -210,6 +210,51 @@ def test_an_estimator_far_worse_than_ls_is_not_converged():
     warnings = mark_not_converged({"ls": ls, "hopfield": hop, "rls": rls}, ls)
     assert not hop.converged and rls.converged and ls.converged
     assert warnings and warnings[0].startswith("HOPFIELD: not converged")
+
+
+@pytest.mark.parametrize(
+    "ref,converged,not_converged",
+    [(0.01, 0.018, 0.021),  # bar max(1.5 x 0.01, 0.01 + 0.01) = max(0.015, 0.02) = 0.02
+     (0.1, 0.14, 0.16)],  # bar max(1.5 x 0.1, 0.1 + 0.01) = max(0.15, 0.11) = 0.15
+)  # fmt: skip
+def test_the_not_converged_bar_is_the_larger_of_one_and_a_half_ls_and_ls_plus_a_point(
+    ref, converged, not_converged
+):
+    """An estimator is not converged when its in-sample stacked error exceeds the larger of
+    1.5 x LS's and LS's + 0.01 (1 percentage point): below the bar it stays converged."""
+    ls = MethodResult("ls", np.zeros(2), d_stacked=ref)
+    near = MethodResult("hopfield", np.zeros(2), d_stacked=converged)
+    far = MethodResult("rls", np.zeros(2), d_stacked=not_converged)
+    warnings = mark_not_converged({"ls": ls, "hopfield": near, "rls": far}, ls)
+    assert near.converged and not far.converged and ls.converged
+    assert len(warnings) == 1 and warnings[0].startswith("RLS: not converged")
+
+
+def test_a_mass_matrix_indefinite_at_some_samples_is_counted():
+    """impossible_values warns that M(q) is not positive definite at k of the K sampled rows,
+    k counted on the smallest eigenvalue: here the pan's inertia ZZ1R lowered by 0.75 kg m^2
+    (M11(q2) then changes sign with the tilt angle) while the tilt's M22 stays positive, so
+    the largest eigenvalue is positive at every row and only the smallest tells. Truth: k
+    from numpy's eigvalsh on the Newton-Euler M(q) of the physical parameters with YY1
+    (one of ZZ1R's terms, coefficient 1) lowered by 0.75."""
+    from types import SimpleNamespace
+
+    m = build_model(load_robot("guard"))
+    names = m.base.names
+    params = np.array(m.params, dtype=float)
+    assert m.base.K[names.index("ZZ1R"), m.param_names.index("YY1")] == 1.0
+    params[m.param_names.index("YY1")] -= 0.75
+    theta = m.base.values(params)
+    K = 200
+    q = np.c_[np.linspace(-3, 3, K), np.linspace(-np.pi, np.pi, K)]
+    eig = np.linalg.eigvalsh(m.mass_matrix(q, params))
+    k = int(np.sum(eig[:, 0] <= 0))
+    assert 0 < k < K and np.all(eig[:, -1] > 0)  # indefinite at some rows only
+    ls = SimpleNamespace(theta_=theta, std_=np.full(len(theta), 0.01))
+    out = impossible_values(m, list(range(len(names))), names, ls, SimpleNamespace(q=q))
+    (line,) = out  # no friction or rotor inertia below 0
+    assert f"not positive definite at {k} of {K} sampled rows" in line
+    assert f"smallest eigenvalue {eig[:, 0].min():.3g})" in line
 
 
 def test_measured_velocity_columns_are_used(tmp_path):

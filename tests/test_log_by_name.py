@@ -19,7 +19,7 @@ from badinput_tools import ERROR_PREFIX, invoke
 from logedit import column, data_rows, swapped, with_header_line, without_rows
 
 from guardid.errors import ConfigError
-from guardid.identify.checks import ANGLE_TOLERANCE_COUNTS, check_log_robot
+from guardid.identify.checks import ANGLE_TOLERANCE_COUNTS, check_distinct, check_log_robot
 from guardid.identify.runs import load_run
 from guardid.log import read_log
 from guardid.robot import load_robot
@@ -113,6 +113,45 @@ def test_the_angle_check_holds_to_a_thousandth_of_a_count(capture):
     run.q[1234, 0] += per_count
     with pytest.raises(ConfigError, match=r"column q_pan_rad, data row 1235: "):
         check_log_robot(run, load_robot("guard"), "test")
+
+
+def test_the_headers_sample_period_must_be_the_robots_to_one_percent(capture):
+    """A guardid log whose header sample_period_s is 1.3 % off the guard's sample_period
+    (0.0152 s against 0.015 s) is refused, naming the field and both periods; one 0.33 % off
+    (0.01505 s) is not refused by this check. Called on the run directly: load_run's own
+    check against the firmware's tick_period (0.5 us) would refuse the edited header first."""
+    guard = load_robot("guard")
+    assert guard.sample_period == 0.015
+    run = load_run(capture)
+    run.sample_period_s = 0.01505  # |0.01505 - 0.015| = 5e-5 s < 1 % of 0.015 s = 1.5e-4 s
+    check_log_robot(run, guard, "test")  # no error
+    run = load_run(capture)
+    run.sample_period_s = 0.0152  # 2e-4 s off > 1.5e-4 s
+    with pytest.raises(ConfigError, match=r"sample_period_s 0\.0152 s, but robot guard .*"
+                                          r"sample_period 0\.015 s"):  # fmt: skip
+        check_log_robot(run, guard, "test")
+
+
+def test_two_logs_differing_only_in_one_current_are_distinct(capture, tmp_path):
+    """check_distinct refuses a copy of a log (another file, the same samples), but a copy
+    whose currents differ in one value by 1 mA (times and angles the same) is a different
+    recording: accepted."""
+    text = capture.read_text()
+    lines, rows = data_rows(text)
+    c = lines[0].rstrip("\n").split(",").index("i_pan_A")
+    parts = lines[rows[100]].rstrip("\n").split(",")
+    parts[c] = f"{float(parts[c]) + 0.001:.3f}"
+    moved = list(lines)
+    moved[rows[100]] = ",".join(parts) + "\n"
+    (tmp_path / "copy.csv").write_text(text)
+    (tmp_path / "moved.csv").write_text("".join(moved))
+    original, copy, other = (load_run(p) for p in (capture, tmp_path / "copy.csv",
+                                                   tmp_path / "moved.csv"))  # fmt: skip
+    assert np.array_equal(other.t, original.t) and np.array_equal(other.q, original.q)
+    assert abs(other.current[100, 0] - original.current[100, 0] - 0.001) < 1e-9
+    check_distinct([original, other])  # no error
+    with pytest.raises(ConfigError, match=r"copy\.csv: the same samples as .*run1\.csv"):
+        check_distinct([original, copy])
 
 
 def test_a_log_whose_joints_are_not_the_robots_names_the_column(capture, tmp_path):
