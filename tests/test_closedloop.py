@@ -429,10 +429,11 @@ def test_didim_std_is_labelled_not_honest(closed_loop_result, tmp_path):
     assert any(w.startswith("didim: its std is not honest") for w in closed_loop_result.warnings)
 
 
-def test_untrusted_only_when_the_verdict_rests_on_an_unfinished_closed_loop_fit():
-    """trust_problems: a not-converged IV is a problem when IV is the verdict's method (no
-    WLS/LS ran), named with its stop reason when the result carries it; beside WLS it is
-    not; a converged IV is not."""
+@pytest.mark.parametrize(("method", "label"), [("iv", "IV"), ("didim", "DIDIM")])
+def test_untrusted_only_when_the_verdict_rests_on_an_unfinished_closed_loop_fit(method, label):
+    """trust_problems: a not-converged IV or DIDIM is a problem when it is the verdict's
+    method (no WLS/LS ran), named with its stop reason when the result carries it; beside
+    WLS it is not; a converged one is not."""
     from guardid.estimators import LeastSquares
     from guardid.identify.pipeline import MethodResult
     from guardid.identify.untrusted import trust_problems
@@ -443,36 +444,12 @@ def test_untrusted_only_when_the_verdict_rests_on_an_unfinished_closed_loop_fit(
     ls = LeastSquares().fit(A, y)
     names = ("a", "b")
 
-    def iv(converged, **settings):
-        return MethodResult("iv", ls.theta_, ls.std_, converged=converged, settings=settings)
+    def fit(converged, **settings):
+        return MethodResult(method, ls.theta_, ls.std_, converged=converged, settings=settings)
 
     wls = MethodResult("wls", ls.theta_, ls.std_)
-    assert trust_problems(ls, names, {"iv": iv(True)}) == []
-    assert trust_problems(ls, names, {"wls": wls, "iv": iv(False)}) == []
-    (only,) = trust_problems(ls, names, {"iv": iv(False, stopped="the run: diverged at t = 1 s")})
-    assert only.startswith("IV, the verdict's method, did not converge (the run: diverged at t")
-
-
-def test_an_unfinished_didim_as_the_verdicts_method_is_untrusted_too():
-    """trust_problems: the same promise for DIDIM as for IV (test above): a not-converged
-    DIDIM, the verdict's method (no WLS/LS ran), is a problem named with its stop reason;
-    beside WLS it is not; a converged DIDIM is not."""
-    from guardid.estimators import LeastSquares
-    from guardid.identify.pipeline import MethodResult
-    from guardid.identify.untrusted import trust_problems
-
-    rng = np.random.default_rng(4)
-    A = rng.normal(size=(200, 2, 2))
-    y = A @ np.array([1.0, 2.0]) + rng.normal(scale=0.1, size=(200, 2))
-    ls = LeastSquares().fit(A, y)
-    names = ("a", "b")
-
-    def didim(converged, **settings):
-        return MethodResult("didim", ls.theta_, ls.std_, converged=converged, settings=settings)
-
-    wls = MethodResult("wls", ls.theta_, ls.std_)
-    assert trust_problems(ls, names, {"didim": didim(True)}) == []
-    assert trust_problems(ls, names, {"wls": wls, "didim": didim(False)}) == []
+    assert trust_problems(ls, names, {method: fit(True)}) == []
+    assert trust_problems(ls, names, {"wls": wls, method: fit(False)}) == []
     stopped = "the run: diverged at t = 1 s"
-    (only,) = trust_problems(ls, names, {"didim": didim(False, stopped=stopped)})
-    assert only.startswith(f"DIDIM, the verdict's method, did not converge ({stopped})")
+    (only,) = trust_problems(ls, names, {method: fit(False, stopped=stopped)})
+    assert only.startswith(f"{label}, the verdict's method, did not converge ({stopped})")
