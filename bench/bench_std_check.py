@@ -33,7 +33,8 @@ short ones first). Not in "all" (outside the tuned sets): fast120, fast600, fast
 (the default excitation on bench/robots/guard_coarse.yaml: the guard with an encoder four
 times coarser, 12 counts per motor revolution). Any of default, tracking, slow, schroeder,
 sines, fast, modified, coarse, variant (the default excitation on
-bench/robots/guard_variant.yaml), variantschroeder (--kind schroeder on it), reseeded (excite
+bench/robots/guard_variant.yaml), variantschroeder (--kind schroeder on it), third and
+thirdschroeder (the same two on bench/robots/guard_third.yaml), reseeded (excite
 --seed 7), small (--margin 0.3 --start 0,12.5) or longperiod (--base-freq 0.05) followed by a
 length in seconds is a set as well (modified1200, tracking300, coarse600, variant60,
 reseeded60: lengths, excitations and robots nobody named).
@@ -82,6 +83,7 @@ for _length in (300, 1200):
         SETS[f"{_name}{_length}"] = Set(_EXCITATIONS[_name], float(_length))
 COARSE = MODIFIED.parent / "guard_coarse.yaml"
 VARIANT = MODIFIED.parent / "guard_variant.yaml"
+THIRD = MODIFIED.parent / "guard_third.yaml"
 _FAST = ("--base-freq", "0.25", "--harmonics", "5")
 EXTRA_SETS: dict[str, Set] = {
     **{f"fast{n}": Set(_FAST, float(n)) for n in (120, 600, 1200)},
@@ -97,6 +99,8 @@ _FAMILIES: dict[str, Set] = {
     "coarse": Set((), 0.0, str(COARSE)),
     "variant": Set((), 0.0, str(VARIANT)),
     "variantschroeder": Set(_EXCITATIONS["schroeder"], 0.0, str(VARIANT)),
+    "third": Set((), 0.0, str(THIRD)),
+    "thirdschroeder": Set(_EXCITATIONS["schroeder"], 0.0, str(THIRD)),
     "reseeded": Set(("--seed", "7"), 0.0),
     "small": Set(("--margin", "0.3", "--start", "0,12.5"), 0.0),
     "longperiod": Set(("--base-freq", "0.05"), 0.0),
@@ -108,7 +112,10 @@ tracking300, coarse600): the same excitation and robot at a length nobody named.
 (``--base-freq 0.05``: a 20 s period) are excitations no set names; variant is the default
 excitation on bench/robots/guard_variant.yaml, a robot no default was tuned on (PID every
 10 ms, other motors, gears, encoders, current noise, friction and masses, the arm's COM off
-its plane), variantschroeder the schroeder excitation on it."""
+its plane), variantschroeder the schroeder excitation on it; third and thirdschroeder the
+same two on bench/robots/guard_third.yaml (PID every 20 ms, a 12-bit current ADC finer than
+the telemetry's whole mA, a friction offset on the pan, a heavier arm whose COM lies below
+its plane)."""
 
 
 def find_set(name: str) -> Set | None:

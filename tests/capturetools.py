@@ -18,6 +18,7 @@ from guardid.protocol import ENUMS, FrameParser
 from guardid.robot import load_robot
 
 VARIANT = Path(__file__).resolve().parents[1] / "bench" / "robots" / "guard_variant.yaml"
+THIRD = VARIANT.parent / "guard_third.yaml"
 """A robot no default was tuned on (the guard's kinematics, other PID period, drives,
 encoders, friction and masses; its header says what differs)."""
 IDLE = ENUMS["mode"]["idle"]

@@ -46,13 +46,82 @@ CODES = np.arange(-20, 20)  # 40 distinct levels: enough to be recognised
     [
         (np.r_[_rounded(CODES), 0.0031], 10, "3.1 mA: 0.8 mA from the 3.906 mA level"),
         ((_rounded(CODES) + _rounded(CODES + 1)) / 2, 10, "means of two readings"),
-        (_rounded(CODES, 12), 12, "a 12-bit ADC: 0.98 mA steps, finer than twice the unit"),
-        (_rounded(CODES, 11), 11, "an 11-bit ADC: 1.95 mA steps, not more than twice the unit"),
         (_rounded(np.arange(19)), 10, "19 distinct levels: too few to tell from chance"),
+        (_rounded(np.arange(37), 11), 11, "11-bit: 37 levels of 1.953 mA, too few (38 needed)"),
+        (_rounded(np.arange(-200, 200), 13), 13, "a 13-bit ADC: 0.49 mA steps, below half a unit"),
     ],
 )
 def test_values_that_are_not_rounded_levels_are_left_alone(values, bits, why):
     assert current_on_adc_levels(np.array(values), RANGE_A, bits, UNIT_A) is None, why
+
+
+def test_an_11_bit_adc_is_recovered_exactly_from_38_levels():
+    """1.953 mA steps: each level's whole-mA rounding lies within half a mA of it and of no
+    other level; a whole mA falls on some level's rounding with chance 1 / 1.953 = 0.512,
+    so 38 values are needed for below 1e-11 (0.512^37 = 1.7e-11, 0.512^38 = 8.9e-12, by
+    hand)."""
+    step = 2 * RANGE_A / 2**11
+    codes = np.arange(-19, 19)
+    got = current_on_adc_levels(_rounded(codes, 11), RANGE_A, 11, UNIT_A)
+    assert got is not None and np.array_equal(got, codes * step)
+
+
+STEP12_A = 2 * RANGE_A / 2**12  # 0.9765625 mA: two levels round to one whole mA every 42 mA
+
+
+def _smooth_codes(n, rng, bits=12):
+    """n ADC codes of a smooth current (a slow sine, an offset and 5 mA noise)."""
+    current = 0.3 * np.sin(np.linspace(0.0, 60.0, n)) + 0.05 + rng.normal(0.0, 0.005, n)
+    return np.floor(current / (2 * RANGE_A / 2**bits) + 0.5)
+
+
+def test_a_12_bit_adc_goes_to_the_mean_of_the_levels_that_round_to_each_value():
+    """Every whole mA is some 12-bit level's rounding and one in about 42 is two levels':
+    with enough readings the doubled values show in the histogram, and each value becomes
+    the mean of the levels that round to it, here found by brute force over all 4096
+    codes."""
+    rng = np.random.default_rng(12)
+    codes = _smooth_codes(20000, rng)
+    logged = _rounded(codes, 12)
+    got = current_on_adc_levels(logged, RANGE_A, 12, UNIT_A)
+    assert got is not None
+    all_levels = np.arange(-2048, 2048) * STEP12_A
+    rounded = telemetry_ma(all_levels)
+    expected = np.array([all_levels[rounded == v].mean() for v in logged])
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)
+    single = np.array([np.sum(rounded == v) == 1 for v in logged])
+    assert 0.9 < single.mean() < 1.0  # most values come back exactly, some as a mean of two
+    np.testing.assert_allclose(got[single], codes[single] * STEP12_A, rtol=0, atol=1e-12)
+
+
+CASES12 = ["500 readings", "means of two", "0.3 mA off", "whole mA", "beyond the range", "13 bits"]
+
+
+@pytest.mark.parametrize("case", CASES12)
+def test_12_bit_values_without_the_evidence_are_left_alone(case):
+    """Whole mA from a 12-bit ADC carry no sign of the levels but the histogram's: too few
+    readings to show it, values that are not whole mA, whole mA of a current that was
+    never on 0.977 mA levels (rounded straight from the continuous value), or a value no
+    level rounds to (2.1 A: beyond the +-2 A range). A 13-bit ADC's 0.488 mA steps, below
+    half a unit, are left alone however many readings show them."""
+    rng = np.random.default_rng(13)
+    bits = 12
+    if case == "500 readings":
+        values = _rounded(_smooth_codes(500, rng), 12)
+    elif case == "means of two":
+        codes = _smooth_codes(20000, rng)
+        values = (_rounded(codes, 12) + _rounded(codes + 1, 12)) / 2
+    elif case == "0.3 mA off":
+        values = _rounded(_smooth_codes(20000, rng), 12) + 0.0003
+    elif case == "whole mA":
+        current = 0.3 * np.sin(np.linspace(0.0, 60.0, 20000)) + rng.normal(0.0, 0.005, 20000)
+        values = telemetry_ma(current)
+    elif case == "beyond the range":
+        values = np.r_[_rounded(_smooth_codes(20000, rng), 12), 2.1]
+    else:
+        bits = 13
+        values = _rounded(_smooth_codes(40000, rng, 13), 13)
+    assert current_on_adc_levels(values, RANGE_A, bits, UNIT_A) is None, case
 
 
 def test_twenty_levels_and_a_nan():

@@ -13,12 +13,12 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
-from capturetools import VARIANT
+from capturetools import THIRD, VARIANT
 
 from guardid.dynamics import build_model
 from guardid.robot import load_robot
 
-CHAINS = ("guard", "planar2", "dfki_double_pendulum", str(VARIANT))
+CHAINS = ("guard", "planar2", "dfki_double_pendulum", str(VARIANT), str(THIRD))
 """Shipped chains and bench/bench_std_check.py's variant robot (its arm's COM off-plane)."""
 
 
@@ -219,3 +219,18 @@ def test_regressor_and_base_parameters_match_pinocchio(robot):
     assert rank(w) == b
     assert rank(yb) == b
     assert rank(np.hstack([w, yb])) == b
+
+
+@pytest.mark.parametrize("robot", CHAINS, ids=_name)
+def test_base_parameter_values_give_pinocchios_torques(robot):
+    """The base parameters' values (the truth bench/bench_std_check.py scores against) times
+    the base regressor give pinocchio's inverse dynamics plus the rotors and friction."""
+    desc = load_robot(robot)
+    model = build_model(desc)
+    pm = pin_model(desc)
+    data = pm.createData()
+    q, qd, qdd = states(desc.n_dof, 200, 11)
+    theirs = np.array([pin.rnea(pm, data, a, b, c) for a, b, c in zip(q, qd, qdd, strict=True)])
+    theirs += qdd @ rotor_mass_matrix(desc).T + friction_torque(desc, qd)
+    ours = model.base_regressor(q, qd, qdd) @ model.base.values(model.params)
+    assert np.abs(ours - theirs).max() <= 1e-9 * np.abs(theirs).max()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -61,31 +63,111 @@ def current_on_adc_levels(current_a, full_range_a: float, adc_bits: int, unit_a:
 
     The firmware reads the current through an ADC of ``adc_bits`` bits over
     +-``full_range_a`` [A] (step 2 x range / 2^bits: 3.906 mA on the guard) and the
-    telemetry carries it rounded to whole ``unit_a`` [A] (1 mA; ``TELEMETRY.current``'s
-    scale). That second rounding's error depends on the level (it repeats every 125 mA on
-    the guard), so it follows the motion and persists through a run: on 20-minute captures
-    it biased the tilt's friction by 0.7 std (docs/std_residuals.md). When the step is more
-    than twice the unit, each level's rounding is within half a unit of it and of no other
-    level, so the level is recovered exactly: round(i / step) x step. None (the values kept
-    as they are) when the step is not that coarse, when any value is more than half a unit
-    from every level (another firmware's conversion, an averaged reading such as the AVR
-    port's mean of its oversampled conversions, a foreign log), or when the joint shows
-    fewer than :data:`MIN_DISTINCT_LEVELS` distinct levels (a value off the grid falls
-    within half a unit of a level by chance with probability unit / step: a few could pass
-    together). Values that are not finite are left where they are."""
+    telemetry carries it rounded (half up) to whole ``unit_a`` [A] (1 mA;
+    ``TELEMETRY.current``'s scale). That second rounding's error depends on the level (it
+    repeats every 125 mA on the guard), so it follows the motion and persists through a
+    run: on 20-minute captures it biased the tilt's friction by 0.7 std
+    (docs/std_residuals.md). Two cases are undone:
+
+    - **step > unit** (the guard; an 11-bit ADC over +-2 A): each level's rounding lies
+      within half a unit of it and of no other level, so the level is recovered exactly,
+      round(i / step) x step, when every finite value lies within half a unit of a level
+      and the joint shows at least :func:`distinct_levels_needed` distinct levels (a value
+      off the grid falls that near a level by chance with probability unit / step).
+    - **unit / 2 < step <= unit** (a 12-bit ADC over +-2 A: 0.977 mA steps): every whole
+      unit is some level's rounding, and one in about unit / (unit - step) is two levels'
+      (every 42 mA on that ADC). Whole-unit values are thus no evidence by themselves; the
+      histogram is: a value that two levels round to is read about twice as often as its
+      neighbours. When every finite value is a whole number of units and that evidence
+      (:func:`_two_level_evidence`) beats chance by ln(1 / :data:`CHANCE`), each value is
+      replaced by the mean of the levels that round to it: exact where one level does,
+      half a step off where two do (against a rounding error that follows the level).
+
+    None (the values kept as they are) otherwise: a finer ADC, another firmware's
+    conversion, an averaged reading such as the AVR port's mean of its oversampled
+    conversions, a foreign log. Values that are not finite are left where they are."""
     step = 2.0 * float(full_range_a) / (1 << int(adc_bits))
-    if not step > 2.0 * unit_a:
+    unit = float(unit_a)
+    if not (step > 0.5 * unit and unit > 0.0):
         return None
     current = np.asarray(current_a, dtype=float)
     finite = np.isfinite(current)
-    levels = np.where(finite, np.round(current / step) * step, current)
-    near = np.abs(current - levels)[finite] <= 0.5 * unit_a * (1.0 + 1e-6)
-    if not np.all(near) or np.unique(levels[finite]).size < MIN_DISTINCT_LEVELS:
+    if step > unit:
+        levels = np.where(finite, np.round(current / step) * step, current)
+        near = np.abs(current - levels)[finite] <= 0.5 * unit * (1.0 + 1e-6)
+        needed = distinct_levels_needed(step, unit)
+        if not np.all(near) or np.unique(levels[finite]).size < needed:
+            return None
+        return levels
+    whole = np.round(current[finite] / unit)
+    if whole.size == 0 or not np.all(np.abs(current[finite] / unit - whole) <= 1e-6):
         return None
-    return levels
+    first, count = _preimage(whole, step / unit, int(adc_bits))
+    if np.any(count < 1) or _two_level_evidence(whole, step / unit, int(adc_bits)) < -math.log(
+        CHANCE
+    ):
+        return None
+    out = current.copy()
+    out[finite] = (first + 0.5 * (count - 1)) * step
+    return out
 
+
+CHANCE = 1e-11
+"""Chance [-] the level recovery may take values that are not rounded ADC levels for
+levels: the fewest distinct levels (step > unit) and the histogram's evidence
+(unit / 2 < step <= unit) are set so that values off the grid pass with at most this
+probability."""
 
 MIN_DISTINCT_LEVELS = 20
 """Fewest distinct levels [-] a joint's current must show before it is put on the ADC's
-levels: 20 values off the grid all within half a unit of a level by chance has probability
-(unit / step)^20, below 1e-11 on the guard (1 mA against 3.906 mA steps)."""
+levels, whatever the step: 20 values off the grid all within half a unit of a level by
+chance has probability (unit / step)^20, below :data:`CHANCE` on the guard (1 mA against
+3.906 mA steps)."""
+
+
+def distinct_levels_needed(step_a: float, unit_a: float) -> int:
+    """Fewest distinct levels [-] for step > unit: values off the grid each land within half
+    a unit of a level with probability unit / step, so n of them all do with (unit /
+    step)^n; n is the least with that below :data:`CHANCE`, and at least
+    :data:`MIN_DISTINCT_LEVELS` (20 on the guard; 38 for 1.953 mA steps)."""
+    share = unit_a / step_a
+    return max(MIN_DISTINCT_LEVELS, math.ceil(math.log(CHANCE) / math.log(share)))
+
+
+def _preimage(whole, ratio: float, adc_bits: int):
+    """First ADC code (N,) and number of codes (N,) whose level rounds (half up) to each
+    whole-unit value; ``whole`` in units, ``ratio`` = step / unit <= 1. Codes outside the
+    ADC's range are not counted."""
+    half = 1 << (adc_bits - 1)
+    eps = 1e-9
+    first = np.maximum(np.ceil((whole - 0.5) / ratio - eps), -half)
+    last = np.minimum(np.ceil((whole + 0.5) / ratio - eps) - 1.0, half - 1)
+    return first, last - first + 1.0
+
+
+def _two_level_evidence(whole, ratio: float, adc_bits: int) -> float:
+    """Log-likelihood ratio [-] of "rounded ADC levels" against "whole-unit readings of a
+    smooth current", from the histogram of ``whole`` (values in units, step / unit =
+    ``ratio`` <= 1). At each value whose number of levels differs from both neighbours'
+    (the values two levels round to, or, below 2/3 unit, the values only one does), the
+    three counts are binomial: shares in proportion to their numbers of levels under the
+    first, a third each under the second (the density taken as flat over three units).
+    Triples do not overlap. Positive favours the levels."""
+    values, counts = np.unique(whole, return_counts=True)
+    lo, hi = values[0] - 1.0, values[-1] + 1.0
+    grid = np.arange(lo, hi + 1.0)
+    hist = np.zeros(grid.size)
+    hist[(values - lo).astype(int)] = counts
+    _, n = _preimage(grid, ratio, adc_bits)
+    odd = np.flatnonzero((n[1:-1] != n[:-2]) & (n[1:-1] != n[2:])) + 1
+    total, last = 0.0, -3
+    for c in odd:
+        if c - last < 3:
+            continue
+        last = c
+        k = hist[c - 1 : c + 2]
+        if k.sum() == 0:
+            continue
+        share = n[c - 1 : c + 2] / n[c - 1 : c + 2].sum()
+        total += float(np.sum(k * np.log(3.0 * share)))
+    return total
