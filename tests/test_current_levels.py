@@ -181,3 +181,80 @@ def test_a_log_in_other_units_keeps_its_current(gap_guard_captures):
     assert np.array_equal(prepared.current[:, 1], kept)
     codes = prepared.current[:, 0] / STEP_A
     assert np.array_equal(codes, np.round(codes))
+
+
+def _brute_force(full_range_a, bits):
+    """Whole mA -> (number of levels, their mean [A]) over every code, each level rounded as
+    the firmware's telemetry writes it: floor(level x 1000.0 + 0.5)."""
+    step = 2 * full_range_a / 2**bits
+    codes = np.arange(-(2 ** (bits - 1)), 2 ** (bits - 1))
+    rounded = np.floor(codes * step * 1000.0 + 0.5)
+    table = {}
+    for v in np.unique(rounded):
+        levels = codes[rounded == v] * step
+        table[v] = (levels.size, levels.mean())
+    return table
+
+
+@pytest.mark.parametrize(("full_range_a", "bits"), [(2.0, 12), (1.6, 12), (0.6, 11)])
+def test_the_levels_behind_each_value_as_the_firmware_rounds_them(full_range_a, bits):
+    """Every whole mA in range against a brute force over all codes, on ranges whose steps
+    are not powers of two too (1.6 A: 0.78125 mA; 0.6 A / 11 bits: 0.5859 mA), where the
+    firmware's floats break some ties downwards."""
+    from guardid.conditioning.units import _preimage
+
+    table = _brute_force(full_range_a, bits)
+    whole = np.array(sorted(table))
+    mean, count = _preimage(whole, 2 * full_range_a / 2**bits, UNIT_A, bits)
+    np.testing.assert_array_equal(count, [table[v][0] for v in whole])
+    np.testing.assert_allclose(mean, [table[v][1] for v in whole], rtol=0, atol=1e-15)
+    beyond = np.array([whole.min() - 1.0, whole.max() + 1.0])  # no code's level rounds there
+    np.testing.assert_array_equal(_preimage(beyond, 2 * full_range_a / 2**bits, UNIT_A, bits)[1], 0)
+
+
+def _doubled_values_ma(n):
+    """The first n positive whole mA that two 12-bit levels (2 A) round to."""
+    table = _brute_force(RANGE_A, 12)
+    return [v for v in sorted(table) if v > 0 and table[v][0] == 2][:n]
+
+
+def test_the_evidence_worked_by_hand():
+    """One triple about a doubled value d: counts (10, 20, 10) at d - 1, d, d + 1 give
+    10 ln(3/4) + 20 ln(3/2) + 10 ln(3/4) = 20 ln(9/8) = 2.3557; (100, 200, 100) would give
+    23.56 but counts at most ln(1e11) / 5 = 5.0657: one held value is not the evidence."""
+    from guardid.conditioning.units import _two_level_evidence
+
+    (d,) = _doubled_values_ma(1)
+    for k, want in ((10, 20 * math.log(9 / 8)), (100, math.log(1e11) / 5)):
+        whole = np.repeat([d - 1.0, d, d + 1.0], [k, 2 * k, k])
+        got = _two_level_evidence(whole, STEP12_A, UNIT_A, 12)
+        assert got == pytest.approx(want, rel=1e-9)
+
+
+@pytest.mark.parametrize("places", [4, 5])
+def test_the_evidence_must_come_from_five_places(places):
+    """Strong triples (100, 200, 100) about 4 doubled values reach 4 x 5.07 = 20.3 < 25.3:
+    left alone; about 5 they reach ln(1e11): put on the levels."""
+    whole = np.concatenate(
+        [np.repeat([d - 1.0, d, d + 1.0], [100, 200, 100]) for d in _doubled_values_ma(places)]
+    )
+    got = current_on_adc_levels(whole / 1000, RANGE_A, 12, UNIT_A)
+    assert (got is not None) == (places == 5)
+
+
+@pytest.mark.parametrize("case", ["held at 21 mA", "square wave", "held half the log"])
+def test_a_current_held_still_is_not_taken_for_levels(case):
+    """Whole mA of currents never on the levels that sit still at values two levels round
+    to (a holding torque; a square wave between two such values; half a log held, half a
+    smooth motion): each hold is one place however long it lasts."""
+    rng = np.random.default_rng(21)
+    d1, d2 = _doubled_values_ma(2)  # 21 and 63 mA
+    if case == "held at 21 mA":
+        current = d1 / 1000 + rng.normal(0.0, 0.0003, 60000)
+    elif case == "square wave":
+        current = np.where(np.arange(60000) % 200 < 100, d1, -d1) / 1000
+        current = current + rng.normal(0.0, 0.0003, 60000)
+    else:
+        moving = 0.3 * np.sin(np.linspace(0.0, 60.0, 30000)) + rng.normal(0.0, 0.005, 30000)
+        current = np.r_[d2 / 1000 + rng.normal(0.0, 0.0003, 30000), moving]
+    assert current_on_adc_levels(telemetry_ma(current), RANGE_A, 12, UNIT_A) is None

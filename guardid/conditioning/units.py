@@ -79,44 +79,52 @@ def current_on_adc_levels(current_a, full_range_a: float, adc_bits: int, unit_a:
       (every 42 mA on that ADC). Whole-unit values are thus no evidence by themselves; the
       histogram is: a value that two levels round to is read about twice as often as its
       neighbours. When every finite value is a whole number of units and that evidence
-      (:func:`_two_level_evidence`) beats chance by ln(1 / :data:`CHANCE`), each value is
+      (:func:`_two_level_evidence`) beats chance by ln(1 / :data:`CHANCE`), gathered at
+      :data:`MIN_TRIPLES` or more values (not from one held current), each value is
       replaced by the mean of the levels that round to it: exact where one level does,
       half a step off where two do (against a rounding error that follows the level).
 
     None (the values kept as they are) otherwise: a finer ADC, another firmware's
     conversion, an averaged reading such as the AVR port's mean of its oversampled
     conversions, a foreign log. Values that are not finite are left where they are."""
-    step = 2.0 * float(full_range_a) / (1 << int(adc_bits))
+    bits = int(adc_bits)
     unit = float(unit_a)
-    if not (step > 0.5 * unit and unit > 0.0):
+    if not (1 <= bits <= 32 and unit > 0.0):
+        return None
+    step = 2.0 * float(full_range_a) / (1 << bits)
+    if not step > 0.5 * unit:
         return None
     current = np.asarray(current_a, dtype=float)
     finite = np.isfinite(current)
-    if step > unit:
-        levels = np.where(finite, np.round(current / step) * step, current)
-        near = np.abs(current - levels)[finite] <= 0.5 * unit * (1.0 + 1e-6)
-        needed = distinct_levels_needed(step, unit)
-        if not np.all(near) or np.unique(levels[finite]).size < needed:
-            return None
-        return levels
-    whole = np.round(current[finite] / unit)
-    if whole.size == 0 or not np.all(np.abs(current[finite] / unit - whole) <= 1e-6):
-        return None
-    first, count = _preimage(whole, step / unit, int(adc_bits))
-    if np.any(count < 1) or _two_level_evidence(whole, step / unit, int(adc_bits)) < -math.log(
-        CHANCE
-    ):
+    values = current[finite]
+    if values.size == 0:
         return None
     out = current.copy()
-    out[finite] = (first + 0.5 * (count - 1)) * step
+    if step > unit:
+        levels = np.round(values / step) * step
+        near = np.abs(values - levels) <= 0.5 * unit * (1.0 + 1e-6)
+        if not np.all(near) or np.unique(levels).size < distinct_levels_needed(step, unit):
+            return None
+        out[finite] = levels
+        return out
+    whole = np.round(values / unit)
+    if not np.all(np.abs(values / unit - whole) <= 1e-6):
+        return None
+    mean, count = _preimage(whole, step, unit, bits)
+    needed = -math.log(CHANCE) * (1.0 - 1e-9)  # MIN_TRIPLES capped triples reach it
+    if np.any(count < 1) or _two_level_evidence(whole, step, unit, bits) < needed:
+        return None
+    out[finite] = mean
     return out
 
 
 CHANCE = 1e-11
 """Chance [-] the level recovery may take values that are not rounded ADC levels for
-levels: the fewest distinct levels (step > unit) and the histogram's evidence
-(unit / 2 < step <= unit) are set so that values off the grid pass with at most this
-probability."""
+levels: the fewest distinct levels (step > unit: values spread over the range) and the
+histogram's evidence (unit / 2 < step <= unit: whole-unit readings of a current whose
+density is smooth over three units) are set so that such values pass with at most this
+probability. A current held still at :data:`MIN_TRIPLES` values that two levels each round
+to is not covered by that figure."""
 
 MIN_DISTINCT_LEVELS = 20
 """Fewest distinct levels [-] a joint's current must show before it is put on the ADC's
@@ -134,31 +142,56 @@ def distinct_levels_needed(step_a: float, unit_a: float) -> int:
     return max(MIN_DISTINCT_LEVELS, math.ceil(math.log(CHANCE) / math.log(share)))
 
 
-def _preimage(whole, ratio: float, adc_bits: int):
-    """First ADC code (N,) and number of codes (N,) whose level rounds (half up) to each
-    whole-unit value; ``whole`` in units, ``ratio`` = step / unit <= 1. Codes outside the
-    ADC's range are not counted."""
+MIN_TRIPLES = 5
+"""Fewest places [-] the histogram must show two levels rounding to one value: each
+triple's evidence counts up to ln(1 / :data:`CHANCE`) / 5, so that a current held still
+at one value (a holding torque, a square wave's two values) cannot pass however long it
+is held."""
+
+
+def _telemetry_units(levels_a, unit_a: float) -> np.ndarray:
+    """Levels [A] as the firmware's telemetry rounds them, in units: floor(level x scale +
+    0.5), with scale = 1 / unit as the firmware writes it (1000.0 for mA), so that ties
+    fall as its floats make them fall."""
+    scale = 1.0 / unit_a
+    if abs(scale - round(scale)) <= 1e-9 * scale:
+        scale = float(round(scale))
+    return np.floor(levels_a * scale + 0.5)
+
+
+def _preimage(whole, step_a: float, unit_a: float, adc_bits: int):
+    """Mean level [A] (N,) and number of ADC codes (N,) whose level (code x step) the
+    telemetry rounds to each whole-unit value ``whole`` (N,), unit / 2 < step <= unit;
+    codes outside the ADC's range are not counted (count 0, mean NaN)."""
     half = 1 << (adc_bits - 1)
-    eps = 1e-9
-    first = np.maximum(np.ceil((whole - 0.5) / ratio - eps), -half)
-    last = np.minimum(np.ceil((whole + 0.5) / ratio - eps) - 1.0, half - 1)
-    return first, last - first + 1.0
+    near = np.round(np.asarray(whole, dtype=float) * (unit_a / step_a))
+    codes = near[:, None] + np.arange(-2.0, 3.0)  # a unit holds at most 2 codes, within +-1
+    levels = codes * step_a
+    hit = (_telemetry_units(levels, unit_a) == whole[:, None]) & (codes >= -half)
+    hit &= codes <= half - 1
+    count = hit.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(hit, levels, 0.0).sum(axis=1) / count
+    return mean, count
 
 
-def _two_level_evidence(whole, ratio: float, adc_bits: int) -> float:
+def _two_level_evidence(whole, step_a: float, unit_a: float, adc_bits: int) -> float:
     """Log-likelihood ratio [-] of "rounded ADC levels" against "whole-unit readings of a
-    smooth current", from the histogram of ``whole`` (values in units, step / unit =
-    ``ratio`` <= 1). At each value whose number of levels differs from both neighbours'
-    (the values two levels round to, or, below 2/3 unit, the values only one does), the
-    three counts are binomial: shares in proportion to their numbers of levels under the
-    first, a third each under the second (the density taken as flat over three units).
-    Triples do not overlap. Positive favours the levels."""
+    smooth current", from the histogram of ``whole`` (values in units, unit / 2 < step <=
+    unit). At each value whose number of levels differs from both neighbours' (the values
+    two levels round to, or, below 2/3 unit, the values only one does), the three counts
+    are binomial: shares in proportion to their numbers of levels under the first, a third
+    each under the second (the density taken as flat over three units). Triples do not
+    overlap; each counts up to ln(1 / :data:`CHANCE`) / :data:`MIN_TRIPLES` (a peak where a
+    current is held still favours the first without being evidence of levels). Positive
+    favours the levels."""
     values, counts = np.unique(whole, return_counts=True)
     lo, hi = values[0] - 1.0, values[-1] + 1.0
     grid = np.arange(lo, hi + 1.0)
     hist = np.zeros(grid.size)
     hist[(values - lo).astype(int)] = counts
-    _, n = _preimage(grid, ratio, adc_bits)
+    _, n = _preimage(grid, step_a, unit_a, adc_bits)
+    cap = -math.log(CHANCE) / MIN_TRIPLES
     odd = np.flatnonzero((n[1:-1] != n[:-2]) & (n[1:-1] != n[2:])) + 1
     total, last = 0.0, -3
     for c in odd:
@@ -166,8 +199,8 @@ def _two_level_evidence(whole, ratio: float, adc_bits: int) -> float:
             continue
         last = c
         k = hist[c - 1 : c + 2]
-        if k.sum() == 0:
+        if k.sum() == 0 or n[c - 1 : c + 2].min() < 1:
             continue
         share = n[c - 1 : c + 2] / n[c - 1 : c + 2].sum()
-        total += float(np.sum(k * np.log(3.0 * share)))
+        total += min(cap, float(np.sum(k * np.log(3.0 * share))))
     return total
