@@ -8,6 +8,8 @@ exact period-mean current, and the robot YAML's parameters.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -173,8 +175,10 @@ def test_identification_recovers_the_truth_on_true_signals(plant_run, every):
     counts and current, no sensor noise: a small std). With the plant's true tick
     velocities every base parameter comes within 0.05 std (the form is exact up to the
     quadrature); with velocities from the difference stencil of the true positions (and its
-    corrections for the torque steps and slopes) within 0.3 std (without the corrections,
-    1.5 std: this test's stiff position loop changes the voltage a lot every tick).
+    corrections for the torque steps and slopes) within 0.35 std (without the corrections,
+    1.5 std: this test's stiff position loop changes the voltage a lot every tick; the
+    largest, Fv2 at every tick, was -0.300 before the stretches' start ramp and -0.312
+    with it, 2026-11-29).
     ``every``: the rows' spacing in ticks, 16 = 1 / (2 fc) (what the default gives this
     short run), 1 every tick, 4 every 4th tick, each the mean of its 4 ticks (a long log's
     rows): the same bounds, in units of the std WLS reports on those rows (their shared
@@ -189,7 +193,7 @@ def test_identification_recovers_the_truth_on_true_signals(plant_run, every):
     std = WeightedLeastSquares(**measured.error_model()).fit(measured.A, measured.y).std_
     free = free_columns(model, desc)
     truth = model.base.values(model.params)[free]
-    for velocity, bound in ((qd, 0.05), (None, 0.3)):
+    for velocity, bound in ((qd, 0.05), (None, 0.35)):
         run = (t, q, i_mean) if velocity is None else (t, q, i_mean, velocity)
         true = stacked_rows([run], desc, opts.with_(flat_is_stuck=False))
         assert true.options.equation == "momentum" and true.options.order == mom.DEFAULT_ORDER
@@ -308,10 +312,11 @@ def test_rows_of_other_positions_line_up_with_the_measured_ones(plant_run):
     assert 0 < rel < 0.05
 
 
-def _whole_stretches(Phi, imp, valid, sos, skip):
+def _whole_stretches(Phi, imp, valid, sos, skip, taper):
     """Reference for the chunked filter: the whole log's period regressor in one array, each
     joint's valid stretches filtered in one ``sosfilt`` call from rest (the form before
-    issue 30's chunks): (A (N, n, b), y (N, n), good (N, n)) on every tick."""
+    issue 30's chunks), the stretch's k-th period (k = 1, 2, ..) weighted min(k / taper, 1)
+    on both sides: (A (N, n, b), y (N, n), good (N, n)) on every tick."""
     from scipy.signal import sosfilt
 
     A, y = np.zeros_like(Phi), np.zeros(Phi.shape[:2])
@@ -320,7 +325,9 @@ def _whole_stretches(Phi, imp, valid, sos, skip):
         for s in range(len(Phi)):
             if valid[s, j] and (s == 0 or not valid[s - 1, j]):
                 e = s + int(np.argmin(np.append(valid[s:, j], False)))
-                out = sosfilt(sos, np.column_stack([imp[s:e, j], Phi[s:e, j, :]]), axis=0)
+                ramp = np.minimum(np.arange(1, e - s + 1) / taper, 1.0)[:, None]
+                both = np.column_stack([imp[s:e, j], Phi[s:e, j, :]]) * ramp
+                out = sosfilt(sos, both, axis=0)
                 y[s + skip : e, j], A[s + skip : e, j] = out[skip:, 0], out[skip:, 1:]
                 good[s + skip : e, j] = True
     return A, y, good
@@ -358,7 +365,8 @@ def test_chunked_rows_equal_the_whole_log_filtered_at_once(plant_run, monkeypatc
     # the whole filter as second-order sections (the Butterworth, then the mean's FIR):
     # independent of the mean formed at the kept rows and carried across chunks
     full = mom.row_filter(2.0, 1.0 / dt, mom.DEFAULT_ORDER, mean)
-    A_ref, y_ref, good = _whole_stretches(Phi, imp, st.valid, full, st.skip)
+    assert st.taper == 5  # round(fs / (2 pi fc)) = round(66.7 / 12.57): a ramp in the rows
+    A_ref, y_ref, good = _whole_stretches(Phi, imp, st.valid, full, st.skip, st.taper)
     np.testing.assert_array_equal(st.row_mask, good[st.rows])
     scale = np.abs(A_ref).max(axis=(0, 1))
     np.testing.assert_allclose(A * dt, A_ref[st.rows], rtol=0, atol=1e-12 * scale.max())
@@ -388,6 +396,53 @@ def test_chunked_identification_equals_the_unchunked_one(plant_run, monkeypatch)
     for (th0, sd0), (th1, sd1) in zip(*fits, strict=True):
         np.testing.assert_allclose(th1, th0, rtol=1e-9, atol=1e-9 * np.abs(th0).max())
         np.testing.assert_allclose(sd1, sd0, rtol=1e-9)
+
+
+def test_a_ramped_start_leaves_the_mean_of_the_first_momenta():
+    """With a running sum as the filter, the period equations' momentum differences summed
+    from a stretch's start leave p_t minus the start's momentum: p_(s-1) alone without a
+    ramp, the mean of the m momenta p_(s-1) .. p_(s+m-2) with the ramp of m (worked by
+    hand: the weights' steps are 1/m each), on both sides of the equation (the impulses
+    given as the same momentum changes). Random momenta, two stretches, both paths of
+    :func:`filtered_rows` (a stretch carried across chunks, stretches from rest); the
+    caller's arrays are left as they were."""
+    rng = np.random.default_rng(3)
+    n_t, m = 60, 4
+    p = rng.normal(size=n_t)
+    d_p = np.zeros(n_t)
+    d_p[1:] = p[1:] - p[:-1]  # period k's momentum change, ending at tick k
+    kept = d_p.copy()
+    valid = np.zeros((n_t, 1), dtype=bool)
+    valid[5:25, 0] = valid[30:58, 0] = True  # stretches from periods 5 and 30
+    running_sum = np.array([[1.0, 0.0, 0.0, 1.0, -1.0, 0.0]])
+    rows = np.arange(n_t)
+    for chunk in (n_t, 7):
+        chunks = [(a, min(a + chunk, n_t), d_p[a : a + chunk, None, None])
+                  for a in range(0, n_t, chunk)]  # fmt: skip
+        for taper, with_imp in itertools.product((1, m), (False, True)):
+            imp = d_p[:, None].copy() if with_imp else None
+            A, y, good, _ = mom.filtered_rows(chunks, imp, valid, running_sum, 0, rows, 1,
+                                              taper=taper)  # fmt: skip
+            for a, _, phi in chunks:  # not scaled in place
+                np.testing.assert_array_equal(phi[:, 0, 0], kept[a : a + len(phi)])
+            for s, e in ((5, 25), (30, 58)):
+                start = p[s - 1] if taper == 1 else p[s - 1 : s - 1 + m].mean()
+                t = np.arange(s + m, e)
+                np.testing.assert_allclose(A[t, 0, 0], p[t] - start, rtol=0, atol=1e-12)
+                if with_imp:
+                    np.testing.assert_array_equal(imp[:, 0], kept)
+                    np.testing.assert_allclose(y[t, 0], p[t] - start, rtol=0, atol=1e-12)
+                assert good[s:e, 0].all()
+
+
+def test_the_ramp_is_one_time_constant_of_the_filter():
+    """m = round(fs / (2 pi fc)), by hand: the guard's 66.7 Hz at 2 Hz: 5.3 -> 5; 100 Hz at
+    2 Hz: 7.96 -> 8; 50 Hz at 4 Hz: 1.99 -> 2; a cut-off near Nyquist: 1 (no ramp)."""
+    assert mom.taper_ticks(2.0, 1.0 / 0.015) == 5
+    assert mom.taper_ticks(2.0, 100.0) == 8
+    assert mom.taper_ticks(4.0, 50.0) == 2
+    assert mom.taper_ticks(20.0, 50.0) == 1
+    np.testing.assert_allclose(mom.start_ramp(4), [0.25, 0.5, 0.75])
 
 
 @pytest.mark.parametrize("m", [1, 4, 15])

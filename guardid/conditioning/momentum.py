@@ -38,7 +38,12 @@ velocity quantisation from the momentum columns (and the current noise). The fil
 per joint over stretches where that joint's equation holds; where it does not (a stuck,
 slow or reversing joint, a hard stop, a missing tick) the stretch ends, and the next starts
 with the filter at rest; the first :func:`transient_samples` outputs after each start are
-dropped (there the first momentum's velocity error weighs as much as all the others).
+dropped (there the first momentum's velocity error weighs as much as all the others). Each
+stretch's first period equations ramp in over one time constant of the filter
+(:func:`taper_ticks`, :func:`start_ramp`; both sides alike, so the equation stays exact):
+the start's momentum is then the mean of that many ticks' momenta, not one tick's, whose
+velocity's rounding error, locked to the closed loop's phase at every start of a run, left
+a bias growing with the log on a robot whose PID ran every 10 ms (docs/std_residuals.md).
 Rows are kept every ``decimate`` periods (about 1 / (2 fc) apart), divided by T (torque
 units); a joint whose filtered equation is not valid at a kept instant has a zero row there.
 """
@@ -74,6 +79,10 @@ MARGIN_TICKS = 2
 TRANSIENT_RATIO = 0.05
 """After a start, outputs are dropped while the first momentum's weight squared exceeds this
 fraction of the steady-state weight of all the others (:func:`transient_samples`) [-]."""
+TAPER_TIME_CONSTANTS = 1.0
+"""Each stretch's first periods ramp in over this many of the filter's time constants
+1 / (2 pi fc) (:func:`taper_ticks`) [-]: the start's momentum becomes the mean of that many
+ticks' momenta, whose rounding errors mostly cancel (docs/std_residuals.md, 2026-11-29)."""
 QUADRATURE = np.array([-1.0, 13.0, 13.0, -1.0]) / 24.0
 """Four-point rule over ticks k-2 .. k+1 for the integral over (t_(k-1), t_k] [x T]."""
 TICKS_CHUNK = 8192
@@ -99,6 +108,7 @@ class MomentumState:
     kink: int | None = None  # the stencil whose kink correction the rows carry
     points: int = 3  # the velocity stencil (or 5 for measured velocities: rows_like)
     mean_ticks: int = 1  # after ``sos``, the mean of this many ticks (:func:`row_filter`)
+    taper: int = 1  # each stretch's first periods weighted by :func:`start_ramp` of this
 
     @property
     def v(self) -> np.ndarray:
@@ -194,6 +204,36 @@ def transient_samples(sos) -> int:
     steady = float(np.sum(np.diff(h, prepend=0.0) ** 2))
     above = np.flatnonzero(h**2 > TRANSIENT_RATIO * steady)
     return int(above[-1]) + 1 if above.size else 0
+
+
+def taper_ticks(cutoff_hz: float, fs_hz: float) -> int:
+    """The start ramp's length m [ticks]: :data:`TAPER_TIME_CONSTANTS` x the filter's time
+    constant fs / (2 pi fc), rounded, at least 1 (no ramp)."""
+    return max(1, int(round(TAPER_TIME_CONSTANTS * fs_hz / (2.0 * np.pi * cutoff_hz))))
+
+
+def start_ramp(taper: int) -> np.ndarray:
+    """(m - 1,) weights 1/m, 2/m, .., (m-1)/m of a stretch's first m - 1 period equations
+    (the later ones weigh 1). Both sides of each period's equation are scaled alike, so
+    the equation stays exact; summed over the stretch, the momentum differences then leave
+    p_t - mean(p_(s-1) .. p_(s+m-2)) instead of p_t - p_(s-1), s the first period: the
+    start's momentum, and its velocity's rounding error, is the mean of m ticks' (the
+    three-point velocities' mean over m ticks telescopes to a difference over m + 1
+    periods, so that error falls as 1 / m)."""
+    return np.arange(1, int(taper), dtype=float) / int(taper)
+
+
+def _ramped(block, done: int, taper: int):
+    """``block`` (L, ...) of a stretch's periods ``done`` .. ``done`` + L - 1, its rows within
+    the start ramp scaled by :func:`start_ramp` (a new array then; ``block`` as it is
+    otherwise)."""
+    w = start_ramp(taper)[int(done) :]
+    if not w.size or not len(block):
+        return block
+    w = w[: len(block)]
+    out = np.array(block, dtype=float, copy=True)
+    out[: len(w)] *= w.reshape((-1,) + (1,) * (out.ndim - 1))
+    return out
 
 
 def tick_velocity(q, dt: float, points: int = 3):
@@ -484,9 +524,11 @@ def period_chunks(model, q, v, dt: float, kink_points: int | None = None):
         yield a, b, period_regressor(model, q[lo:hi], v[lo:hi], dt, kink_points)[a - lo : b - lo]
 
 
-def filtered_rows(chunks, imp, valid, sos, skip: int, rows, n_cols: int, mean_ticks: int = 1):
-    """Each joint's valid stretches filtered (at rest at every start, the first ``skip``
-    outputs dropped), kept at the ticks ``rows`` (M,) only: (A (M, n, n_cols) filtered
+def filtered_rows(chunks, imp, valid, sos, skip: int, rows, n_cols: int, mean_ticks: int = 1,
+                  taper: int = 1):  # fmt: skip
+    """Each joint's valid stretches filtered (at rest at every start, the first ``taper`` - 1
+    periods weighted by :func:`start_ramp`, the first ``skip`` outputs dropped), kept at the
+    ticks ``rows`` (M,) only: (A (M, n, n_cols) filtered
     regressor, y (M, n) filtered impulses (zero without ``imp``), good (M, n) filtered
     equation valid, transient: valid periods dropped in the filters' starts). The filter:
     ``sos``, then for ``mean_ticks`` m > 1 the mean of the last m outputs (zero before a
@@ -524,6 +566,7 @@ def filtered_rows(chunks, imp, valid, sos, skip: int, rows, n_cols: int, mean_ti
                 if s > 0 or zi[j] is None:  # a new stretch: the filter at rest
                     zi[j], done[j] = np.zeros((len(sos), 2, block.shape[1])), 0
                     tail[j] = np.zeros((m - 1, block.shape[1]))
+                block = _ramped(block, done[j], taper)
                 out, zi[j] = sosfilt(sos, block, axis=0, zi=zi[j])
                 out = np.concatenate([tail[j], out]) if m > 1 else out  # row i + m - 1: tick i
                 transient += int(min(e - s, max(skip - done[j], 0)))
@@ -535,7 +578,7 @@ def filtered_rows(chunks, imp, valid, sos, skip: int, rows, n_cols: int, mean_ti
                 done[j] += e - s
             new_s, new_e = starts[~alone], ends[~alone]
             transient += int(np.minimum(new_e - new_s, skip).sum())
-            _filter_from_rest(sos, Phi, imp, a, j, new_s, new_e, rows, skip, out_rows, m)
+            _filter_from_rest(sos, Phi, imp, a, j, new_s, new_e, rows, skip, out_rows, m, taper)
             if not valid[b - 1, j]:  # no stretch runs on into the next chunk
                 zi[j] = None
     return A, y, good, transient
@@ -563,7 +606,8 @@ def _keep(out_rows, j, at, out, with_imp: bool) -> None:
     good[at, j] = True
 
 
-def _filter_from_rest(sos, Phi, imp, a, j, starts, ends, rows, skip, out_rows, m=1) -> None:
+def _filter_from_rest(sos, Phi, imp, a, j, starts, ends, rows, skip, out_rows, m=1,
+                      taper=1) -> None:  # fmt: skip
     """Joint ``j``'s stretches ``starts`` .. ``ends`` (chunk ticks, from ``a``) of a chunk,
     each filtered from rest with nothing carried out, many in one ``sosfilt`` call: the
     stretches side by side, zero-padded to a common length per power of two of their
@@ -586,6 +630,7 @@ def _filter_from_rest(sos, Phi, imp, a, j, starts, ends, rows, skip, out_rows, m
             else:
                 X[: e - s, lane, 0] = imp[a + s : a + e, j]
                 X[: e - s, lane, 1:] = Phi[s:e, j, :]
+        X = _ramped(X, 0, taper)  # every lane starts at its row 0
         out = sosfilt(sos, X, axis=0)
         if m > 1:  # each lane from rest: zeros before its start
             out = np.concatenate([np.zeros((m - 1, *out.shape[1:])), out])
@@ -611,7 +656,7 @@ def regressor_rows(state: MomentumState, model) -> np.ndarray:
     parameter set's model scored on the same rows) [torque units]."""
     chunks = period_chunks(model, state.q, state.v, state.dt, state.kink)
     A, _, _, _ = filtered_rows(chunks, None, state.valid, state.sos, state.skip, state.rows,
-                               model.base.B.shape[1], state.mean_ticks)  # fmt: skip
+                               model.base.B.shape[1], state.mean_ticks, state.taper)  # fmt: skip
     return A * state.row_mask[:, :, None] / state.dt
 
 
@@ -680,6 +725,7 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
     cut_stop = ~valid & ~cut & ~cut_slow
     sos = filter_sos(cutoff_hz, fs, order)  # then the mean (filtered_rows, at the rows)
     skip = transient_samples(row_filter(cutoff_hz, fs, order, mean_ticks))
+    taper = taper_ticks(cutoff_hz, fs)
     k = decimation(fs, cutoff_hz) if decimate is None else int(decimate)
     imp = period_impulse(effort, dt, gain, effort_is_torque)
     if kink:
@@ -690,7 +736,7 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
         rows = np.flatnonzero(tick_count(t, dt) % k == 0)
     chunks = period_chunks(model, q, v, dt, kink)  # only the kept rows' filtered values stay
     A, y, jm, transient = filtered_rows(chunks, imp, valid, sos, skip, rows, model.base.B.shape[1],
-                                        mean_ticks)  # fmt: skip
+                                        mean_ticks, taper)  # fmt: skip
     A *= jm[:, :, None] / dt  # in place: at every tick A is the run's largest array
     y = y * jm / dt
     mask = np.any(jm, axis=1)
@@ -698,13 +744,15 @@ def condition_momentum(t_s, q, effort, model, *, gain, cutoff_hz: float, order: 
     inner = (rows > 0) & (rows < len(t) - 1)
     qdd[inner] = (v[rows[inner] + 1] - v[rows[inner] - 1]) / (2.0 * dt)
     state = MomentumState(q, None if velocity is None else v, dt, valid, sos, skip, rows, jm,
-                          kink, points if velocity is None else 5, int(mean_ticks))  # fmt: skip
+                          kink, points if velocity is None else 5, int(mean_ticks),
+                          taper)  # fmt: skip
     share = 100.0 * valid.sum(0) / max(len(t), 1)
     notes = [
         f"cut-off {cutoff_hz:.3g} Hz",
         "equation: filtered momentum (impulse per period = momentum change + integral of "
         f"the rest; causal Butterworth order {order} at {cutoff_hz:.3g} Hz on both sides, "
-        f"{skip} periods dropped after each start)",
+        f"{skip} periods dropped after each start, the first {taper - 1} weighted 1/{taper} "
+        f"to {taper - 1}/{taper})",
         f"velocities at the ticks: {how}",
         "periods usable per joint: "
         + ", ".join(f"{s:.0f} %" for s in share)
@@ -814,7 +862,8 @@ def quantisation_noise(state: MomentumState, model, resolution, damping, *,
             if state.kink:
                 d_imp = -damping * slope_term(v_e - v_w, state.dt, state.kink)
             dA, dy, good, _ = filtered_rows([(0, width, d_phi)], d_imp, valid_w, state.sos,
-                                            state.skip, rows_w, n_b, state.mean_ticks)  # fmt: skip
+                                            state.skip, rows_w, n_b, state.mean_ticks,
+                                            state.taper)  # fmt: skip
             good &= mask_w
             dA = dA * good[:, :, None] / state.dt
             dy = dy * good / state.dt
