@@ -18,9 +18,11 @@ from guardid.protocol import ENUMS, FrameParser
 from guardid.robot import load_robot
 
 VARIANT = Path(__file__).resolve().parents[1] / "bench" / "robots" / "guard_variant.yaml"
-THIRD = VARIANT.parent / "guard_third.yaml"
 """A robot no default was tuned on (the guard's kinematics, other PID period, drives,
 encoders, friction and masses; its header says what differs)."""
+THIRD = VARIANT.parent / "guard_third.yaml"
+"""A third robot nobody tuned on (PID every 20 ms, a 12-bit current ADC finer than the
+telemetry's whole mA, a friction offset on the pan; its header says what differs)."""
 IDLE = ENUMS["mode"]["idle"]
 POSITION = ENUMS["mode"]["position"]
 

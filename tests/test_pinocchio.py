@@ -19,7 +19,8 @@ from guardid.dynamics import build_model
 from guardid.robot import load_robot
 
 CHAINS = ("guard", "planar2", "dfki_double_pendulum", str(VARIANT), str(THIRD))
-"""Shipped chains and bench/bench_std_check.py's variant robot (its arm's COM off-plane)."""
+"""Shipped chains and bench/bench_std_check.py's variant and third robots (their arms' COM
+off-plane)."""
 
 
 def _name(robot: str) -> str:

@@ -108,7 +108,7 @@ class MomentumState:
     kink: int | None = None  # the stencil whose kink correction the rows carry
     points: int = 3  # the velocity stencil (or 5 for measured velocities: rows_like)
     mean_ticks: int = 1  # after ``sos``, the mean of this many ticks (:func:`row_filter`)
-    taper: int = 1  # each stretch's first periods weighted by :func:`start_ramp` of this
+    taper: int = 1  # the start ramp's length m (:func:`start_ramp`; 1: no ramp)
 
     @property
     def v(self) -> np.ndarray:
