@@ -32,11 +32,12 @@ GAIN = N * ETA * KT  # torque per ampere [N m / A]
 D = GAIN * N * KE / R  # electrical damping [N m s / rad]
 
 
-def _drive(inductance: float, ticks: int = 400, seed: int = 3, ke: float = KE):
+def _drive(inductance: float, ticks: int = 400, seed: int = 3, ke: float = KE, volts=None):
     """(q, v at the ticks, period-mean torque) of the motor-driven joint, random voltages
-    held over each period (exact per period: the state equation is linear)."""
-    rng = np.random.default_rng(seed)
-    volts = rng.uniform(-6.0, 6.0, ticks)
+    (or ``volts``) held over each period (exact per period: the state equation is linear)."""
+    if volts is None:
+        volts = np.random.default_rng(seed).uniform(-6.0, 6.0, ticks)
+    ticks = len(volts)
     # state (q, v, i, z = integral of i), input V as a fifth constant state
     A = np.zeros((5, 5))
     A[0, 1] = 1.0
@@ -121,13 +122,38 @@ def test_lag_weights_by_hand():
 
 
 def test_no_jump_is_taken_across_a_lost_tick():
+    """A lost tick before tick 30: the steps into periods 30 and 31 span it and are left
+    out; with the three-point weights (periods k and k + 1) the momentum error changes at
+    ticks 29-31, its differences at 29-32, and nowhere else."""
     q, _, tau = _drive(0.002, ticks=60)
     broken = np.zeros(60, dtype=bool)
     broken[30] = True
     whole = lag_correction(tau, q, T, *mom.STENCILS[3], [0.002 / R], [D])
     cut = lag_correction(tau, q, T, *mom.STENCILS[3], [0.002 / R], [D], broken)
-    differs = np.flatnonzero(np.any(whole != cut, axis=1))
-    assert differs.size and differs.min() >= 29 and differs.max() <= 32
+    assert np.flatnonzero(np.any(whole != cut, axis=1)).tolist() == [29, 30, 31, 32]
+
+
+@pytest.mark.parametrize("points", [3, 5])
+def test_the_rows_carry_the_lag_term_with_either_stencil(points, monkeypatch):
+    """condition_momentum's impulse rows with the YAML's inductance and with none differ,
+    for the three- and the five-point stencil: the term is applied with either."""
+    from guardid.dynamics import build_model
+    from guardid.identify.equation import drive_gain
+
+    desc = load_robot("guard")
+    model = build_model(desc)
+    t = np.arange(1200) * T
+    noise = np.random.default_rng(5).uniform(-1.0, 1.0, (2, len(t)))
+    q1, _, tau1 = _drive(0.002, volts=6.0 * np.sin(1.9 * t) + 4.0 * np.sin(7.0 * t) + noise[0])
+    q2, _, tau2 = _drive(0.002, volts=5.0 * np.sin(2.6 * t) + 3.0 * np.sin(5.0 * t) + noise[1])
+    q = np.hstack([q1, 0.05 * q2])
+    current = np.hstack([tau1, tau2]) / drive_gain(desc)
+    kw = {"gain": drive_gain(desc), "cutoff_hz": 2.0, "stiction_threshold": 1e-6,
+          "points": points, "decimate": 1}  # fmt: skip
+    _, _, y_with = mom.condition_momentum(t, q, current, model, **kw)
+    monkeypatch.setattr(mom, "electrical_time_constants", lambda d: np.zeros(len(d.joints)))
+    _, _, y_without = mom.condition_momentum(t, q, current, model, **kw)
+    assert np.abs(y_with - y_without).max() > 1e-4 * np.abs(y_with).max()
 
 
 def test_time_constants_from_the_description():
