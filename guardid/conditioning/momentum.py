@@ -62,6 +62,7 @@ from guardid.conditioning.electrical_lag import (
     electrical_time_constants,
     error_steps,
     lag_correction,
+    lag_weights,
 )
 from guardid.conditioning.stiction import at_position_limit, default_stiction_threshold
 from guardid.errors import GuardidError
@@ -284,17 +285,11 @@ def kink_weights(points: int = 3) -> tuple[np.ndarray, int]:
 def slope_weights(points: int = 3) -> tuple[np.ndarray, int]:
     """(U, first): the stencil's velocity error per unit of each period's acceleration slope,
     v_hat_k - v_k = ... + T^2 sum_i U[i] a'(period ending at tick k + first + i) [-]
-    (a linear acceleration over each period: the period-mean part is :func:`kink_weights`')."""
-    coef, reach = STENCILS[points]
-    first = -reach + 1
-    U = np.zeros(2 * reach)
-    for m_idx, c in enumerate(coef):
-        m = m_idx - reach
-        for i in range(1, m + 1):  # m > 0: the periods from tick k to k + m
-            U[i - first] -= c / 12.0
-        for i in range(m + 1, 1):  # m < 0: from tick k + m to k
-            U[i - first] += c / 12.0
-    return U, first
+    (a linear acceleration over each period: the period-mean part is :func:`kink_weights`').
+    A slope a' has the first moment a' T^3 / 12 about its period's start, so U is the
+    first-moment weights of :func:`~guardid.conditioning.electrical_lag.lag_weights` / 12."""
+    V, first = lag_weights(*STENCILS[points])
+    return V / 12.0, first
 
 
 def slope_term(v, dt: float, points: int = 3) -> np.ndarray:
