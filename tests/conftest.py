@@ -160,19 +160,30 @@ def noise_free_replay(tmp_path_factory) -> dict:
     return out
 
 
+def _variant_schroeder(d: Path, seed: int, duration_s: float) -> None:
+    """``d / "log.csv"``: ``duration_s`` of the Schroeder excitation on the variant robot
+    (capturetools.VARIANT) through ``sim://VARIANT?seed=SEED&start=50&supply=0.02&ripple=0.01``."""
+    traj = d / "traj.yaml"
+    made = invoke("excite", "--robot", VARIANT, "--kind", "schroeder", "-o", traj)
+    assert made.exit_code == 0, made.stderr
+    port = f"sim://{VARIANT}?seed={seed}&start=50&supply=0.02&ripple=0.01"
+    res = invoke("capture", "--trajectory", traj, "--robot", VARIANT, "--port", port,
+                 "--duration", f"{duration_s:g}", "--quiet", "-o", d / "log.csv")  # fmt: skip
+    assert res.exit_code == 0, res.stderr
+
+
 @pytest.fixture(scope="session")
 def far_start_capture(tmp_path_factory) -> Path:
     """30 s of the Schroeder excitation on the variant robot (capturetools.VARIANT), its
     first setpoint 4 and 10 deg from the rest pose the capture starts at, so the PID starts
     saturated: the log (read only)."""
-
-    def make(d):
-        traj = d / "traj.yaml"
-        made = invoke("excite", "--robot", VARIANT, "--kind", "schroeder", "-o", traj)
-        assert made.exit_code == 0, made.stderr
-        port = f"sim://{VARIANT}?seed=12000&start=50&supply=0.02&ripple=0.01"
-        res = invoke("capture", "--trajectory", traj, "--robot", VARIANT, "--port", port,
-                     "--duration", "30", "--quiet", "-o", d / "log.csv")  # fmt: skip
-        assert res.exit_code == 0, res.stderr
-
+    make = lambda d: _variant_schroeder(d, 12000, 30.0)  # noqa: E731
     return made_once(tmp_path_factory, "far_start", make) / "log.csv"
+
+
+@pytest.fixture(scope="session")
+def variant_schroeder_300s(tmp_path_factory) -> Path:
+    """300 s of the Schroeder excitation on the variant robot, seed 12001: the log (read
+    only)."""
+    make = lambda d: _variant_schroeder(d, 12001, 300.0)  # noqa: E731
+    return made_once(tmp_path_factory, "variant_schroeder_300s", make) / "log.csv"

@@ -1,5 +1,5 @@
 """Edits of a guardid log's text for tests, with str.split only (independent of guardid.log):
-rows removed, columns swapped (with or without their names), a header line changed."""
+rows removed, columns swapped (with or without their names) or scaled, a header line changed."""
 
 from __future__ import annotations
 
@@ -33,6 +33,17 @@ def swapped(text: str, a: str, b: str, names_too: bool) -> str:
     for k in [0, *rows] if names_too else rows:
         parts = lines[k].rstrip("\n").split(",")
         parts[i], parts[j] = parts[j], parts[i]
+        lines[k] = ",".join(parts) + "\n"
+    return "".join(lines)
+
+
+def scaled(text: str, name: str, factor: float) -> str:
+    """Column ``name``'s values times ``factor`` in every data row (printed with repr)."""
+    lines, rows = data_rows(text)
+    c = lines[0].rstrip("\n").split(",").index(name)
+    for k in rows:
+        parts = lines[k].rstrip("\n").split(",")
+        parts[c] = repr(float(parts[c]) * factor)
         lines[k] = ",".join(parts) + "\n"
     return "".join(lines)
 

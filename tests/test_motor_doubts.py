@@ -1,14 +1,17 @@
 """Identified motors against the robot description: a current swapped between joints under
 unchanged names cannot be checked against the counts, but the motor equation v = R i + Ke w
-then gives an R and a Ke far from the description's, and identify says so."""
+then gives an R and a Ke far from the description's, and identify refuses the result (exit
+4; until 2026-11-29 a warning with exit 0); so does a current read at another scale, which
+would scale every rigid-body estimate with it."""
 
 from __future__ import annotations
 
 import math
 
 import pytest
+import yaml
 from badinput_tools import invoke
-from logedit import swapped
+from logedit import scaled, swapped
 
 from guardid.identify.electrical import MotorEstimate, motor_doubts
 from guardid.robot import load_robot
@@ -67,8 +70,33 @@ def test_currents_swapped_under_their_names_are_named_by_identify(gap_guard_capt
     assert "motor pan: R -" in refused.stderr and "motor tilt: R -" in refused.stderr
     res = invoke("identify", bad, "--method", "wls", "--force")
     assert res.exit_code == 0, res.output
-    lines = [x for x in res.stderr.splitlines() if x.startswith("warning: motor ")]
-    assert {x.split(":")[1].split()[1] for x in lines} == {"pan", "tilt"}, res.stderr
+    doubts = [x for x in res.stderr.splitlines() if "cannot be trusted (--force): motor " in x
+              and "identified R" in x]  # fmt: skip
+    assert {x.split("motor ")[1].split(":")[0] for x in doubts} == {"pan", "tilt"}, res.stderr
+
+
+def test_a_current_read_twice_as_large_is_refused(gap_guard_captures, tmp_path):
+    """i_pan_A doubled (a current sensor of twice the description's sensitivity): the pan's
+    motor equation gives R = 8 / 2 = 4 ohm with Ke unchanged, so identify refuses it (exit
+    4, one line naming the pan's motor and the description's 8 ohm, no file), where the
+    intact capture passes; with --force the file is written, its pan inertia ZZ1R about
+    twice the YAML's (the rigid-body estimates scale with the current)."""
+    log = gap_guard_captures[1]
+    bad, out = tmp_path / "doubled.csv", tmp_path / "p.yaml"
+    bad.write_text(scaled(log.read_text(), "i_pan_A", 2.0))
+    refused = invoke("identify", bad, "--method", "wls", "-o", out)
+    assert refused.exit_code == 4, refused.output
+    (line,) = refused.stderr.splitlines()
+    assert "doubled.csv" in line and "motor pan: identified R " in line and "8 ohm" in line
+    r_ohm = float(line.split("motor pan: identified R ")[1].split()[0])
+    assert 3.9 < r_ohm < 4.1, line  # 8 ohm / 2
+    assert "motor tilt" not in line and not out.exists()
+    assert invoke("identify", bad, "--method", "wls", "--force", "-o", out).exit_code == 0
+    data = yaml.safe_load(out.read_text())
+    zz1r = next(p for p in data["base_parameters"] if p["name"] == "ZZ1R")
+    k = [p["name"] for p in data["base_parameters"]].index("ZZ1R")
+    ratio = data["methods"]["wls"]["values"][k] / zz1r["yaml_value"]
+    assert 1.8 < ratio < 2.2, ratio
 
 
 def test_voltages_swapped_under_their_names_are_refused_by_their_ke(gap_guard_captures, tmp_path):

@@ -160,10 +160,16 @@ DOUBT_STD = 5.0
 
 
 def motor_doubts(description, motors) -> list[str]:
-    """Warnings for identified motors whose Ke or R disagree with the robot description's
+    """Problems (identify refuses the result, exit 4; ``--force`` writes it with them as
+    warnings) for identified motors whose Ke or R disagree with the robot description's
     (:data:`KE_TOLERANCE`, :data:`R_FACTOR`, :data:`DOUBT_STD`): the voltage, current or
     angle columns of that joint may not belong together (swapped, another robot's log), or
-    the description's motor is not the one fitted."""
+    the description's motor or current sensor is not the one fitted. Either way the
+    rigid-body estimates are not to be trusted, as they rest on the description's Kt and
+    on the current's scale: both currents read twice as large as they flow (R half the
+    description's, Ke unchanged) double every inertial and friction estimate, hundreds of
+    their std off (the guard, 60 s: MX2R 1.542 +- 0.0017 against 0.77). Until 2026-11-29 this
+    was a warning with exit 0."""
     drives = {j.name: j.drive for j in description.joints if j.drive is not None}
     out = []
     for m in motors:
@@ -180,7 +186,8 @@ def motor_doubts(description, motors) -> list[str]:
                 f"motor {m.joint}: identified R {m.resistance:.3g} ohm, Ke {m.ke:.3g} V s/rad "
                 f"against the description's {d.resistance:.3g} ohm, {d.ke:.3g} V s/rad: this "
                 "joint's voltage, current and angle columns may not belong together (swapped "
-                "columns, another robot's log?) or its motor is not the description's; the "
-                "rigid-body parameters rest on the description's Kt"
+                "columns, another robot's log?) or its motor or current sensor is not the "
+                "description's; the rigid-body parameters rest on the description's Kt and on "
+                "the current's scale"
             )
     return out

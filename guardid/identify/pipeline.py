@@ -30,8 +30,13 @@ from guardid.identify.equation import free_columns
 from guardid.identify.methods import FitRows, MethodFit, methods_for
 from guardid.identify.prepare import effort_is_torque, prepared_runs, run_signals
 from guardid.identify.rows import rows_summary, stacked_rows
-from guardid.identify.trust import impossible_values, mark_not_converged, stacked_error
-from guardid.identify.untrusted import reference_method, trust_problems
+from guardid.identify.trust import (
+    MAX_MASS_SAMPLES,
+    impossible_values,
+    mark_not_converged,
+    stacked_error,
+)
+from guardid.identify.untrusted import indefinite_mass_matrix, reference_method, trust_problems
 
 POOR_REL_STD_PCT = 10.0  #: warn when a parameter's relative standard deviation exceeds this
 
@@ -287,7 +292,6 @@ def _result_of(rows: FitRows, results, options, torque) -> Identification:
     electrical = all(r.voltage is not None and r.ticks is not None for r in runs)
     if electrical and not (options.in_current_units or torque):
         motors = _motors(rows.description, runs)
-        warnings += motor_doubts(rows.description, motors)
     return Identification(
         names=names,
         formulas=tuple(rows.model.base.formulas[i] for i in rows.free),
@@ -303,8 +307,25 @@ def _result_of(rows: FitRows, results, options, torque) -> Identification:
         conditioning=rows.rows.options,
         cutoff_reason=cond.notes[0] if cond.notes else "",
         rows_summary=rows_summary(cond),
-        untrusted=trust_problems(ls, names, results, motors),
+        untrusted=trust_problems(
+            ls, names, results, motors, _mass_problems(rows, results, ls, options)
+        )
+        + motor_doubts(rows.description, motors),
     )
+
+
+def _mass_problems(rows: FitRows, results, ls, options) -> list[str]:
+    """:func:`indefinite_mass_matrix` of the verdict's method (its estimate and covariance;
+    LS's when it has none) at up to ``MAX_MASS_SAMPLES`` of the run's rows (none in current
+    units, whose scale is unknown)."""
+    cond = rows.rows.cond
+    if options.in_current_units or not len(cond.q):
+        return []
+    ref = reference_method(results)
+    r = results.get(ref) if ref is not None else None
+    theta, cov = (r.theta, r.cov) if r is not None and r.cov is not None else (ls.theta_, ls.cov_)
+    q = np.asarray(cond.q)[:: max(1, len(cond.q) // MAX_MASS_SAMPLES)]
+    return indefinite_mass_matrix(rows.model, rows.free, theta, cov, q)
 
 
 MOVING_PCT = 10.0
