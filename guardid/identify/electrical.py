@@ -166,10 +166,14 @@ def motor_doubts(description, motors) -> list[str]:
     angle columns of that joint may not belong together (swapped, another robot's log), or
     the description's motor or current sensor is not the one fitted. Either way the
     rigid-body estimates are not to be trusted, as they rest on the description's Kt and
-    on the current's scale: both currents read twice as large as they flow (R half the
-    description's, Ke unchanged) double every inertial and friction estimate, hundreds of
-    their std off (the guard, 60 s: MX2R 1.542 +- 0.0017 against 0.77). Until 2026-11-29 this
-    was a warning with exit 0."""
+    on the current's scale, and the momentum form's stencil corrections on its R (the
+    back-EMF's damping N Ke / R and the current's lag L / R). A current read k times as large
+    as it flows gives R / k with Ke unchanged and scales every inertial and friction estimate
+    by k, hundreds of their std off; it is caught only beyond k = :data:`R_FACTOR` (the guard,
+    60 s, both currents times 2.5: R 3.2 against 8 ohm, MX2R 1.93 +- 0.002 against 0.77;
+    times 1.98 passes with every estimate 1.98 times too large: the current's scale cannot
+    be told from a warm motor's R below that). Until 2026-11-29 this was a warning with exit
+    0."""
     drives = {j.name: j.drive for j in description.joints if j.drive is not None}
     out = []
     for m in motors:

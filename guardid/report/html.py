@@ -214,10 +214,15 @@ def online_figure(result, tracker) -> str | None:
 def verdict(result) -> tuple[str, bool]:
     """(one sentence, trusted): how well the reference method (WLS, else LS, else any with
     standard deviations: :func:`~guardid.identify.untrusted.reference_method`) resolves every
-    base parameter, by :func:`guardid.online.information.assess` at :data:`POOR_REL_STD_PCT`."""
+    base parameter, by :func:`guardid.online.information.assess` at :data:`POOR_REL_STD_PCT`;
+    first, a result identify refused (``untrusted``, written with ``--force``) says so, with
+    every reason."""
     from guardid.identify.untrusted import reference_method
     from guardid.online.information import assess, describe
 
+    untrusted = list(getattr(result, "untrusted", None) or [])
+    if untrusted:
+        return f"Not to be trusted (written with --force): {'; '.join(untrusted)}.", False
     name = reference_method(result.results)
     ls = None if name is None else result.results[name]
     if ls is None:
