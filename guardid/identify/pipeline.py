@@ -307,9 +307,8 @@ def _result_of(rows: FitRows, results, options, torque) -> Identification:
         conditioning=rows.rows.options,
         cutoff_reason=cond.notes[0] if cond.notes else "",
         rows_summary=rows_summary(cond),
-        untrusted=trust_problems(
-            ls, names, results, motors, _mass_problems(rows, results, ls, options)
-        )
+        untrusted=trust_problems(ls, names, results, motors)
+        + _mass_problems(rows, results, ls, options)
         + motor_doubts(rows.description, motors),
     )
 

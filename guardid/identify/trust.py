@@ -107,19 +107,29 @@ def mark_not_converged(results, ls) -> list[str]:
     return out
 
 
-def mass_matrix_along(model, free, theta, q, in_current_units=False) -> np.ndarray:
-    """M(q) (K, n, n) at the rows q (K, n) from the identified base values ``theta``."""
-    full = model.base.values(model.params)
-    full[free] = theta
+def mass_matrix_columns(model, free, q) -> tuple[np.ndarray, np.ndarray]:
+    """(M_fixed (K, n, n), M_k (K, n, n, b)) at the rows q (K, n): M(q) is linear in the
+    base values, M = M_fixed + sum_k theta_k M_k, theta the values of the columns ``free``
+    (M_fixed from the model's values of the others), each column of M the regressor at unit
+    acceleration of one joint less the regressor at rest."""
     n = q.shape[1]
     zero = np.zeros_like(q)
-    g = model.base_regressor(q, zero, zero) @ full
+    at_rest = model.base_regressor(q, zero, zero)
     cols = []
     for i in range(n):
         e = np.zeros_like(q)
         e[:, i] = 1.0
-        cols.append(model.base_regressor(q, zero, e) @ full - g)
-    return np.stack(cols, axis=2)
+        cols.append(model.base_regressor(q, zero, e) - at_rest)
+    per = np.stack(cols, axis=2)  # (K, n, n, B): row j, column i, base column
+    fixed = model.base.values(model.params)
+    fixed[free] = 0.0
+    return per @ fixed, per[..., free]
+
+
+def mass_matrix_along(model, free, theta, q, in_current_units=False) -> np.ndarray:
+    """M(q) (K, n, n) at the rows q (K, n) from the identified base values ``theta``."""
+    fixed, per = mass_matrix_columns(model, free, q)
+    return fixed + per @ np.asarray(theta, dtype=float)
 
 
 def impossible_values(model, free, names, ls, cond, in_current_units=False) -> list[str]:

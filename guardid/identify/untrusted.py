@@ -110,22 +110,17 @@ def indefinite_mass_matrix(model, free, theta, cov, q) -> list[str]:
     The 0.13 % a 3-std threshold leaves an honest estimate is per row; over the rows of a
     run, whose eigenvalues are correlated, a truth exactly on the boundary was refused in
     0.4-0.6 % of simulated draws (outside review, 2026-11-29)."""
-    from guardid.identify.trust import mass_matrix_along
+    from guardid.identify.trust import mass_matrix_columns
 
     q = np.asarray(q, dtype=float)
     theta = np.asarray(theta, dtype=float)
     if cov is None or not len(q) or not np.all(np.isfinite(theta)):
         return []
-    sym = lambda m: 0.5 * (m + np.swapaxes(m, 1, 2))  # noqa: E731
-    lam, vec = np.linalg.eigh(sym(mass_matrix_along(model, free, theta, q)))
+    fixed, per = mass_matrix_columns(model, free, q)
+    m = fixed + per @ theta
+    lam, vec = np.linalg.eigh(0.5 * (m + np.swapaxes(m, 1, 2)))
     v = vec[:, :, 0]  # (K, n) the smallest eigenvalue's eigenvector
-    m0 = mass_matrix_along(model, free, np.zeros_like(theta), q)
-    g = np.empty((len(q), len(theta)))
-    for k in range(len(theta)):
-        unit = np.zeros_like(theta)
-        unit[k] = 1.0
-        mk = sym(mass_matrix_along(model, free, unit, q) - m0)
-        g[:, k] = np.einsum("ki,kij,kj->k", v, mk, v)
+    g = np.einsum("ki,kijb,kj->kb", v, per, v)  # (K, b) v^T M_k v
     std = np.sqrt(np.maximum(np.einsum("ka,ab,kb->k", g, np.asarray(cov, float), g), 0.0))
     low = lam[:, 0]
     bad = low < -IMPOSSIBLE_STD * std  # below zero, and by more than the std allows
@@ -142,13 +137,14 @@ def indefinite_mass_matrix(model, free, theta, cov, q) -> list[str]:
     ]
 
 
-def trust_problems(ls, names, results: dict, motors=(), mass=()) -> list[str]:
-    """Every reason not to trust an identification, [] when there is none.
+def trust_problems(ls, names, results: dict, motors=()) -> list[str]:
+    """Every reason not to trust an identification from its fit and motors, [] when there is
+    none (the identify stage adds :func:`indefinite_mass_matrix`'s and the motors'
+    disagreement with the description, ``electrical.motor_doubts``).
 
     ``ls``: the fitted :class:`guardid.estimators.LeastSquares` on the identification rows;
     ``results``: {method: MethodResult}; ``motors``: MotorEstimate list (R [ohm], Ke [V s/rad]
-    with their standard deviations); ``mass``: the problems of the identified mass matrix
-    (:func:`indefinite_mass_matrix`)."""
+    with their standard deviations)."""
     problems = []
     for method, r in results.items():
         bad = [n for n, x in zip(names, np.asarray(r.theta, dtype=float), strict=True)
@@ -182,7 +178,7 @@ def trust_problems(ls, names, results: dict, motors=(), mass=()) -> list[str]:
                     f"{IMPOSSIBLE_STD:g} std (its voltage, current or angle column swapped or of "
                     "the wrong sign?)"
                 )
-    return problems + list(mass)
+    return problems
 
 
 IMPOSSIBLE_STD = 3.0
