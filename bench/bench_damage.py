@@ -5,6 +5,8 @@ identified intact (``--method wls``); then ``--copies`` damaged copies, each wit
 damage drawn at random (seeded), are identified the same way through the command line:
 
     cut        a stretch of 2 to 1500 consecutive rows removed (a gap in the ticks)
+    splice     the same with the ticks and times renumbered and the footer dropped: rows
+               lost without a trace (split only where the step is a jump)
     swap       two joint columns swapped, header and data together (same data by name)
     swapdata   the two joints' angle values swapped under unchanged names
     flip       1 to 6 bytes of the data rows replaced by random bytes
@@ -22,7 +24,7 @@ more than one line, or exit 0 more than 3 std off without a warning). The distan
 computed here with numpy from the params files, not by guardid.
 
     python bench/bench_damage.py [--copies 100] [--seed 7] [--duration 60] [--jobs 2]
-                                 [--keep DIR]
+                                 [--keep DIR] [--kinds cut,splice,...]
 """
 
 from __future__ import annotations
@@ -39,7 +41,8 @@ import yaml
 
 GENERIC = ("relative standard deviation",)
 """Warnings that do not name any damage (they come with a clean log too)."""
-KINDS = ("cut", "swap", "swapdata", "flip", "nan", "truncate", "repeat", "reorder", "dropcol")
+KINDS = ("cut", "swap", "swapdata", "flip", "nan", "truncate", "repeat", "reorder", "dropcol",
+         "splice")  # fmt: skip
 
 
 def _run(*args) -> subprocess.CompletedProcess:
@@ -77,6 +80,19 @@ def damage(text: str, kind: str, rng: np.random.Generator) -> tuple[str, str]:
         k = int(rng.integers(2, 1501))
         at = int(rng.integers(50, n - k - 50))
         return "".join(head + cols + rows[:at] + rows[at + k :] + foot), f"{k} rows cut at {at}"
+    if kind == "splice":
+        k = int(rng.integers(2, 1501))
+        at = int(rng.integers(50, n - k - 50))
+        kept = rows[:at] + rows[at + k :]
+        first = kept[0].split(",")
+        tick0, t0 = int(first[0]), float(first[1])
+        dt = float(kept[1].split(",")[1]) - t0
+        renumbered = []
+        for m, row in enumerate(kept):
+            cells = row.split(",")
+            cells[0], cells[1] = str(tick0 + m), f"{t0 + m * dt:.6f}"
+            renumbered.append(",".join(cells))
+        return "".join(head + cols + renumbered), f"{k} rows spliced out at {at}"
     if kind in ("swap", "swapdata"):
         group = str(rng.choice(["q", "counts", "i", "v"]))
         idx = [i for i, c in enumerate(names) if c.split("_")[0] == group]
@@ -165,6 +181,7 @@ def main(argv=None) -> None:
     ap.add_argument("--duration", type=float, default=60.0, help="capture length [s]")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--keep", type=Path, default=None, help="keep the files in this folder")
+    ap.add_argument("--kinds", default=",".join(KINDS), help="damage kinds, in turn")
     args = ap.parse_args(argv)
     work = args.keep or Path(tempfile.mkdtemp(prefix="damage_"))
     work.mkdir(parents=True, exist_ok=True)
@@ -193,11 +210,14 @@ def main(argv=None) -> None:
             if res.returncode != 0:
                 raise SystemExit(f"guardid {cmd[0]} failed: {res.stderr.strip()[-400:]}")
     theta0, std0 = _estimate(params)
+    kinds = [k for k in args.kinds.split(",") if k]
+    if not set(kinds) <= set(KINDS):
+        raise SystemExit(f"--kinds: unknown {sorted(set(kinds) - set(KINDS))}; known {KINDS}")
     text = log.read_text()
     rng = np.random.default_rng(args.seed)
     jobs = []
     for k in range(args.copies):
-        kind = KINDS[k % len(KINDS)]
+        kind = kinds[k % len(kinds)]
         damaged, what = damage(text, kind, rng)
         path = work / f"damaged_{k:03d}.csv"
         path.write_text(damaged)

@@ -1,5 +1,6 @@
 """Edits of a guardid log's text for tests, with str.split only (independent of guardid.log):
-rows removed, columns swapped (with or without their names) or scaled, a header line changed."""
+rows removed (with or without a trace in the ticks), columns swapped (with or without their
+names) or scaled, a header line changed."""
 
 from __future__ import annotations
 
@@ -60,3 +61,26 @@ def without_footer(text: str) -> str:
     """The log without its footer (the comment lines after the last data row)."""
     lines, rows = data_rows(text)
     return "".join(lines[: rows[-1] + 1])
+
+
+def spliced(text: str, start: int, count: int) -> str:
+    """The log without data rows start .. start + count - 1, its tick and time columns
+    renumbered to run on without a gap (the first row's tick and time, one period per row)
+    and its footer dropped: rows lost with nothing in the log to show it."""
+    lines, rows = data_rows(text)
+    head = lines[0].rstrip("\n").split(",")
+    tick, time = head.index("tick"), head.index("time_s")
+    first = lines[rows[0]].split(",")
+    tick0, t0 = int(first[tick]), float(first[time])
+    dt = float(lines[rows[1]].split(",")[time]) - t0
+    drop, data = set(rows[start : start + count]), set(rows)
+    out, n = [], 0
+    for k, line in enumerate(lines[: rows[-1] + 1]):
+        if k in drop:
+            continue
+        if k in data:
+            parts = line.rstrip("\n").split(",")
+            parts[tick], parts[time] = str(tick0 + n), f"{t0 + n * dt:.6f}"
+            line, n = ",".join(parts) + "\n", n + 1
+        out.append(line)
+    return "".join(out)

@@ -71,11 +71,11 @@ def _run(ticks, path="r.csv"):
 def test_split_run_cuts_after_long_gaps_only_and_drops_short_segments():
     # rows 0-29, then 1 lost (bridged), 31-59, 5 lost (split), 65-99, 7 lost (split), 107-110
     ticks = [*range(30), *range(31, 60), *range(65, 100), *range(107, 111)]
-    segments, gaps, dropped = split_run(_run(ticks), limit_ticks=4, min_rows=10)
+    segments, gaps, dropped, jumps = split_run(_run(ticks), limit_ticks=4, min_rows=10)
     assert [s.path for s in segments] == ["r.csv[1]", "r.csv[2]"]
     assert [(g.lost, g.at_s) for g in gaps] == [(5, pytest.approx(59 * PERIOD)),
                                                (7, pytest.approx(99 * PERIOD))]  # fmt: skip
-    assert dropped == [("r.csv[3]", 4)]
+    assert dropped == [("r.csv[3]", 4)] and jumps == []  # no reach given: no jump looked for
     assert list(segments[0].ticks) == [*range(30), *range(31, 60)]
     assert list(segments[1].ticks) == list(range(65, 100))
     # every per-row array cut alike: the second segment's rows are rows 59..93 of the run

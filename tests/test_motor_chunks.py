@@ -25,7 +25,8 @@ def _run(rng, n, start_tick, gaps):
 def test_chunked_motor_fit_equals_the_stacked_one(monkeypatch, inductance):
     """Two runs (gaps inside, ticks overlapping between the runs), rows formed 7 ticks at a
     time: R, Ke, L, their std, the row count and the residual equal the stacked solve's
-    to 1e-10 relative (the sums of the normal equations taken in another order); the
+    to 1e-10 relative (the sums of the normal equations taken in another order; the std the
+    larger of the homoscedastic and the sandwich one); the
     estimates are near the R = 2 ohm, Ke = 0.01 V s/rad the voltages were made with."""
     rng = np.random.default_rng(3)
     N, T, R, KE, L = 30.0, 0.015, 2.0, 0.01, 1e-3
@@ -50,7 +51,10 @@ def test_chunked_motor_fit_equals_the_stacked_one(monkeypatch, inductance):
     normal = A.T @ A - len(y) * np.diag(noise)
     theta = np.linalg.solve(normal, A.T @ y)
     r = y - A @ theta
-    std = np.sqrt(np.diag(r @ r / (len(y) - A.shape[1]) * np.linalg.inv(normal)))
+    inv = np.linalg.inv(normal)
+    plain = np.diag(r @ r / (len(y) - A.shape[1]) * inv)
+    sandwich = np.diag(inv @ (A.T * r**2) @ A @ inv)  # White's: sum r_k^2 a_k a_k^T inside
+    std = np.sqrt(np.maximum(plain, sandwich))
 
     monkeypatch.setattr(electrical, "MOTOR_CHUNK", 7)
     m = electrical.identify_motor_runs(

@@ -233,3 +233,23 @@ def test_replay_c_kernel_equals_its_numpy_path(payload_log, monkeypatch):
     assert {r.method for r in by_numpy[1]} == {"rls", "hopfield"}  # the payload is seen
     _assert_same(*by_numpy, *native)
     _assert_same(*by_numpy, *mixed)
+
+
+def test_a_restart_given_replays_as_the_stream_restarts(payload_log):
+    """Rows after a jump (a log's rows lost without a gap in the ticks) restart the
+    conditioner: the replay's restart equals the row-by-row feed's, and costs a warm-up."""
+    run, trajectory = payload_log
+    t = (run.ticks - run.ticks[0]) * GUARD.sample_period
+    rows = [t, run.q, run.current, run.voltage]
+
+    def make():
+        return OnlineIdentifier.for_trajectory(GUARD, ("rls",), trajectory)
+
+    live = make()
+    reports = live.update(float(t[0]), run.q[0], run.current[0], run.voltage[0])
+    reports += live.feed(*[x[1:] for x in rows], restarts=[699])  # the run's row 700
+    replayed = make()
+    _assert_same(live, reports, replayed, replayed.feed(*rows, restarts=[700]))
+    plain = make()
+    plain.feed(*rows)
+    assert plain.used > replayed.used  # the warm-up after the restart

@@ -32,7 +32,7 @@ def fold_scores(runs, description, options):
     for i, held in enumerate(runs):
         # the cut-off is chosen from the training runs' data alone (no header hint)
         train = [replace(r, highest_harmonic_hz=None) for k, r in enumerate(runs) if k != i]
-        train = split_runs(train, cutoff_hz).runs  # long gaps: segments as runs
+        train = split_runs(train, cutoff_hz, description=description).runs  # segments as runs
         files = list(dict.fromkeys(r.source or r.path for r in train))
         result = call_naming_logs(files, identify, train, description, options)
         nominal = dict(zip(result.names, result.nominal, strict=True))
@@ -44,7 +44,7 @@ def fold_scores(runs, description, options):
         from guardid.identify.prepare import current_on_adc_levels
 
         held = current_on_adc_levels(held, description)  # scored on what the fit reads
-        parts = split_runs([held], cutoff_hz).runs  # the training runs' rule
+        parts = split_runs([held], cutoff_hz, description=description).runs  # the same rule
         conds = [
             stacked_rows(
                 [_run_tuple(part)], description, result.conditioning,
@@ -99,8 +99,8 @@ def leave_one_run_out(logs, runs, description, options) -> str:
         lines.append(f"{str(log):{width}s} {fc:6.3g}Hz{cells}")
     mean = "".join(f" {100 * np.mean([sc[m] for _, sc in folds]):8.2f}%" for m in methods)
     lines.append(f"{'mean':{width}s} {'':8s}{mean}")
-    split = split_runs(runs, _cutoff(options))
-    if split.gaps:
+    split = split_runs(runs, _cutoff(options), description=description)
+    if split.gaps or split.jumps:
         lines.append("a run split at a gap is one fold (its segments held out together):")
         lines += [f"warning: {w}" for w in split.lines()]
     return "\n".join(lines)

@@ -32,7 +32,8 @@ def prepared_runs(runs, description, options=None):
     runs = [current_on_adc_levels(r, description) for r in runs]
     check_same_rate(runs)
     conditioning = options.conditioning if options is not None else None
-    return split_at_gaps(runs, conditioning.cutoff_hz if conditioning is not None else None)
+    cutoff_hz = conditioning.cutoff_hz if conditioning is not None else None
+    return split_at_gaps(runs, cutoff_hz, description)
 
 
 def current_on_adc_levels(run, description, in_place: bool = False):
@@ -83,16 +84,17 @@ def _in_joint_order(run, description):
                                    "the description given"), robot_name=run.robot_name)  # fmt: skip
 
 
-def split_at_gaps(runs, cutoff_hz):
-    """(runs, Split or None): the runs split at their long gaps
+def split_at_gaps(runs, cutoff_hz, description=None):
+    """(runs, Split or None): the runs split at their long gaps and their jumps
     (:func:`~guardid.identify.segments.split_runs`, the limit from ``cutoff_hz`` [Hz], the
-    given cut-off, or when None the first run's harmonic), unless the caller split them
-    already (a segment among them: ``Run.source`` set) or none has a long gap. GuardidError
-    when no segment is left."""
+    given cut-off, or when None the first run's harmonic; the jumps against
+    ``description``'s drives), unless the caller split them already (a segment among them:
+    ``Run.source`` set) or none has a long gap or a jump. GuardidError when no segment is
+    left."""
     if any(getattr(r, "source", None) for r in runs):
         return runs, None
-    split = split_runs(runs, cutoff_hz, runs[0].highest_harmonic_hz)
-    if not split.gaps and not split.dropped:
+    split = split_runs(runs, cutoff_hz, runs[0].highest_harmonic_hz, description)
+    if not split.split:
         return runs, None
     if not split.runs:
         raise GuardidError("; ".join(split.lines()))

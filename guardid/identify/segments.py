@@ -33,6 +33,10 @@ gap at all (its filter's stretch ends at every lost tick, :mod:`guardid.conditio
 so there the split changes little but the gap's line, whose limit and cut-off are still this
 rule's, not the momentum form's own cut-off.
 
+A step between two rows beyond what the drives can make (a **jump**: rows lost without a
+gap in the ticks, :mod:`guardid.identify.jumps`) splits the run as such a gap does, whatever
+the ticks say.
+
 A gap longer than the limit splits the run into segments ``run.csv[1]``, ``run.csv[2]``, ...
 treated as separate runs are (each filtered, differentiated and its ends cut on its own;
 the closed-loop methods simulate each from its first state; ``--cv`` holds out whole
@@ -50,6 +54,7 @@ import numpy as np
 
 from guardid.conditioning.bandwidth import HARMONIC_FACTOR, MAX_NYQUIST_FRACTION, MIN_CUTOFF_HZ
 from guardid.identify.cutoff import SPAN, motion_bandwidth
+from guardid.identify.jumps import drive_reach, find_jumps
 
 BRIDGE_ERROR = 1e-3
 """Largest relative error [-] of a bridged gap at the motion's highest frequency (module)."""
@@ -108,17 +113,24 @@ class Gap:
 @dataclass
 class Split:
     """Runs after splitting: ``runs`` (segments and whole runs, in order), the ``gaps``
-    that split them, the segments ``dropped`` as too short ((name, rows)), the limit [lost
-    ticks] and the cut-off [Hz] it was derived from."""
+    and the ``jumps`` (:class:`~guardid.identify.jumps.Jump`) that split them, the segments
+    ``dropped`` as too short ((name, rows)), the gaps' limit [lost ticks] and the cut-off
+    [Hz] it was derived from."""
 
     runs: list
     gaps: list[Gap] = field(default_factory=list)
     dropped: list[tuple[str, int]] = field(default_factory=list)
     limit_ticks: int = 0
     cutoff_hz: float = math.nan
+    jumps: list = field(default_factory=list)
+
+    @property
+    def split(self) -> bool:
+        """Whether any run was split (at a gap or a jump) or lost a segment."""
+        return bool(self.gaps or self.jumps or self.dropped)
 
     def lines(self, cutoff_hz: float | None = None) -> list[str]:
-        """One line per splitting gap and per dropped segment: where, how long, what it
+        """One line per splitting gap or jump and per dropped segment: where, how long, what it
         cost. ``cutoff_hz`` [Hz]: the cut-off used (the rows cut at the new ends); default
         the one the limit was derived from."""
         fc = float(cutoff_hz or self.cutoff_hz)
@@ -131,6 +143,7 @@ class Split:
                 f"Hz cut-off: run split there, conditioned as two; cost {g.lost + edge} rows "
                 f"({g.lost} lost, {edge} at the new ends)"
             )
+        out += [j.line(fc) for j in self.jumps]
         out += [
             f"{name}: {rows} rows between gaps, too short to condition: not used"
             for name, rows in self.dropped
@@ -138,21 +151,25 @@ class Split:
         return out
 
 
-def split_run(run, limit_ticks: int, min_rows: int = 10):
-    """(segments, gaps, dropped) of one Run: split after every gap of more than
-    ``limit_ticks`` lost ticks; segments of fewer than ``min_rows`` rows are dropped. A
-    run without ticks (a foreign log off the tick grid) is returned whole."""
-    if run.ticks is None or len(run.ticks) < 2:
-        return [run], [], []
-    ticks = np.asarray(run.ticks, dtype=np.int64)
-    lost = np.diff(ticks) - 1
-    cuts = np.flatnonzero(lost > limit_ticks) + 1
+def split_run(run, limit_ticks: int, min_rows: int = 10, reach=None):
+    """(segments, gaps, dropped, jumps) of one Run: split after every gap of more than
+    ``limit_ticks`` lost ticks and at every jump against ``reach`` (a
+    :class:`~guardid.identify.jumps.Reach`, or None: no jump is looked for); segments of
+    fewer than ``min_rows`` rows are dropped. A run without ticks (a foreign log off the
+    tick grid) is split at its jumps only."""
+    period = _period(run) if len(run.t) > 1 else math.nan
+    jumps = find_jumps(run, reach, period)
+    cuts = np.array([j.index for j in jumps], dtype=np.int64)
+    gaps = []
+    if run.ticks is not None and len(run.ticks) > 1:
+        lost = np.diff(np.asarray(run.ticks, dtype=np.int64)) - 1
+        at = np.flatnonzero(lost > limit_ticks) + 1
+        t = np.asarray(run.t, dtype=float)
+        gaps = [Gap(run.path, float(t[k - 1]), int(lost[k - 1]), period) for k in at]
+        cuts = np.union1d(cuts, at)
     if not cuts.size:
-        return [run], [], []
-    period = _period(run)
-    t = np.asarray(run.t, dtype=float)
-    gaps = [Gap(run.path, float(t[k - 1]), int(lost[k - 1]), period) for k in cuts]
-    bounds = np.concatenate([[0], cuts, [len(ticks)]])
+        return [run], [], [], []
+    bounds = np.concatenate([[0], cuts, [len(run.t)]])
     segments, dropped = [], []
     for number, (a, b) in enumerate(zip(bounds[:-1], bounds[1:], strict=True), start=1):
         name = f"{run.path}[{number}]"
@@ -160,7 +177,7 @@ def split_run(run, limit_ticks: int, min_rows: int = 10):
             dropped.append((name, int(b - a)))
             continue
         segments.append(run_rows(run, a, b, path=name, source=run.source or run.path))
-    return segments, gaps, dropped
+    return segments, gaps, dropped, jumps
 
 
 def run_rows(run, a: int, b: int, **changes):
@@ -170,24 +187,30 @@ def run_rows(run, a: int, b: int, **changes):
     return replace(run, **parts, **changes)
 
 
-def split_runs(runs, cutoff_hz: float | None = None, highest_harmonic_hz=None) -> Split:
-    """Every run split at its long gaps (:func:`split_run`), the limit from ``cutoff_hz``
-    [Hz] (given, or stored in a params file) or else the highest cut-off candidate
-    (:func:`highest_cutoff_hz`, informed by ``highest_harmonic_hz`` [Hz]: the excitation's,
-    from a guardid log's header)."""
+def split_runs(
+    runs, cutoff_hz: float | None = None, highest_harmonic_hz=None, description=None
+) -> Split:
+    """Every run split at its long gaps and its jumps (:func:`split_run`), the gaps' limit
+    from ``cutoff_hz`` [Hz] (given, or stored in a params file) or else the highest cut-off
+    candidate (:func:`highest_cutoff_hz`, informed by ``highest_harmonic_hz`` [Hz]: the
+    excitation's, from a guardid log's header); the jumps against ``description``'s drives
+    (:mod:`guardid.identify.jumps`; None: no jump is looked for)."""
     runs = list(runs)
+    reach = drive_reach(description) if description is not None else None
     timed = [r for r in runs if r.ticks is not None and len(r.t) > 1]
-    if not timed:
+    if not timed and not any(find_jumps(r, reach, math.nan) for r in runs):
         return Split(runs)
     harmonic = highest_harmonic_hz or getattr(runs[0], "highest_harmonic_hz", None)
-    fc = float(cutoff_hz) if cutoff_hz else highest_cutoff_hz(timed, harmonic)
-    period = min(_period(r) for r in timed)
+    usable = timed or [r for r in runs if len(r.t) > 1]
+    fc = float(cutoff_hz) if cutoff_hz else highest_cutoff_hz(usable, harmonic)
+    period = min(_period(r) for r in usable)
     limit = bridge_limit_ticks(fc, period)
     least = min_segment_rows(fc, period)
     out = Split([], limit_ticks=limit, cutoff_hz=fc)
     for run in runs:
-        segments, gaps, dropped = split_run(run, limit, least)
+        segments, gaps, dropped, jumps = split_run(run, limit, least, reach)
         out.runs += segments
         out.gaps += gaps
         out.dropped += dropped
+        out.jumps += jumps
     return out

@@ -312,8 +312,8 @@ def validate_runs(runs, names, description, sets, options, current_units=False, 
 
     torque = bool(runs[0].torque)
     runs = [current_on_adc_levels(r, description) for r in runs]  # as identify fitted them
-    split = split_runs(runs, options.cutoff_hz)  # long gaps: segments scored as runs
-    if split.gaps:
+    split = split_runs(runs, options.cutoff_hz, description=description)  # segments as runs
+    if split.gaps or split.jumps:
         runs, names = split.runs, [r.path for r in split.runs]
     arrays = [_run_tuple(r) for r in runs]
     kw = {"in_current_units": current_units, "effort_is_torque": torque}

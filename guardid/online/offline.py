@@ -51,8 +51,9 @@ def track_log(
     :class:`OnlineIdentifier`'s; 'voltage' falls back to 'current' for a log without voltages.
     ``keep_history``: keep every estimate (for a plot; 200 bytes per row and method).
     The whole run is replayed, gaps and all: the causal conditioning restarts after every
-    lost tick (:func:`guardid.online.replay.replay`), which is stricter than the batch fit's
-    split at long gaps (:mod:`guardid.identify.segments`); the estimators carry on.
+    lost tick and every jump (:func:`guardid.online.replay.replay`,
+    :mod:`guardid.identify.jumps`), which is stricter than the batch fit's split at long
+    gaps (:mod:`guardid.identify.segments`); the estimators carry on.
     The cut-off follows the run's ``highest_harmonic_hz`` (read with the log, see
     :func:`guardid.identify.runs.load_run`); ``log_path`` is read for it only when the run
     does not carry it.
@@ -82,7 +83,10 @@ def track_log(
         t = np.asarray(run.t)
     else:
         t = (np.asarray(run.ticks) - run.ticks[0]) * period
-    tracker.feed(t, run.q, run.current, run.voltage if effort == "voltage" else None)
+    from guardid.identify.jumps import drive_reach, find_jumps
+
+    jumps = [j.index for j in find_jumps(run, drive_reach(description), period)]
+    tracker.feed(t, run.q, run.current, run.voltage if effort == "voltage" else None, jumps)
     settings = []
     if "rls" in online:
         settings.append(f"RLS lambda {tracker.lam:g} per row")
@@ -90,7 +94,8 @@ def track_log(
         settings.append(f"Hopfield beta {tracker.beta:g}")
     settings.append(f"current from the {'motor equation' if effort == 'voltage' else 'sensor'}")
     gaps = int(np.count_nonzero(np.diff(np.asarray(run.ticks)) > 1))
-    restarts = f"; its causal filter restarted after each of {gaps} gaps" if gaps else ""
+    cuts = [f"{gaps} gaps"] * bool(gaps) + [f"{len(jumps)} jumps"] * bool(jumps)
+    restarts = f"; its causal filter restarted after each of {' and '.join(cuts)}" if cuts else ""
     echo(
         f"tracking (the log replayed through the online tracker: {', '.join(settings)}, "
         f"cut-off {tracker.cutoff_hz:.3g} Hz, {tracker.used} of {tracker.rows} rows used"

@@ -25,9 +25,11 @@ CHUNK_ROWS = 20000
 """Used rows whose regressor is formed at a time (memory: about 0.5 kB per row)."""
 
 
-def replay(tracker, t_s, q_rad, current_a, voltage_v=None) -> list:
+def replay(tracker, t_s, q_rad, current_a, voltage_v=None, restarts=()) -> list:
     """Feed ``tracker`` (fresh) the rows t (N,) [s], q (N, n) [rad], currents and voltages
-    (N, n) [A], [V]; returns the change reports. The tracker then takes no more rows."""
+    (N, n) [A], [V]; returns the change reports. The tracker then takes no more rows.
+    ``restarts``: indices of rows before which the conditioner restarts as after a gap
+    (a jump, :mod:`guardid.identify.jumps`)."""
     started = time.perf_counter()
     tk = tracker
     t = np.asarray(t_s, dtype=float)
@@ -37,6 +39,7 @@ def replay(tracker, t_s, q_rad, current_a, voltage_v=None) -> list:
     new_run = np.zeros(N, dtype=bool)
     new_run[0] = True
     new_run[1:] = np.diff(t) > 1.5 * tk.dt  # a gap restarts the conditioner (as update)
+    new_run[np.asarray(restarts, dtype=np.int64)] = True
     if tk.motor is not None:
         if voltage_v is None:
             raise ValueError("effort='voltage' needs the voltages of every row")

@@ -323,9 +323,10 @@ class OnlineIdentifier:
         self.busy_s += time.perf_counter() - started
         return reports
 
-    def feed(self, t_s, q_rad, current_a, voltage_v=None) -> list[ChangeReport]:
+    def feed(self, t_s, q_rad, current_a, voltage_v=None, restarts=()) -> list[ChangeReport]:
         """Feed many rows (N,), (N, n), (N, n), (N, n) in order (a replay); returns their
-        reports.
+        reports. ``restarts``: indices of rows before which the conditioner restarts as
+        after a gap (a log's jumps, :mod:`guardid.identify.jumps`).
 
         A fresh tracker replays a whole log at the estimators' cost
         (:func:`guardid.online.replay.replay`: everything that does not depend on the
@@ -335,14 +336,17 @@ class OnlineIdentifier:
         if self.rows == 0 and len(t_s) > 0:
             from guardid.online.replay import replay
 
-            return replay(self, t_s, q_rad, current_a, voltage_v)
+            return replay(self, t_s, q_rad, current_a, voltage_v, restarts)
         if self._replayed:
             raise RuntimeError("a tracker that replayed a log takes no more rows")
         reports: list[ChangeReport] = []
         cur = np.asarray(current_a)
         volts = np.asarray(voltage_v) if voltage_v is not None else [None] * len(cur)
         rows = zip(np.asarray(t_s, float), np.asarray(q_rad), cur, volts, strict=True)
-        for t, q, c, v in rows:
+        restart = set(int(k) for k in restarts)
+        for k, (t, q, c, v) in enumerate(rows):
+            if k in restart and self._t_prev is not None:
+                self._restart()
             reports += self.update(float(t), q, c, v)
         return reports
 
