@@ -72,13 +72,57 @@ def test_a_step_beyond_the_reach_is_a_jump_and_one_within_it_is_not(guard, joint
 
 
 def test_the_logs_own_voltage_above_the_supply_widens_the_reach(guard):
-    """At 15 V on the tilt's column its no-load speed is 15 / 20 rad/s: a step of 1.03 times
-    the 12 V threshold is within (15 + 4.3343) / 20 x 2 T + one count."""
+    """At 14.9 V (either sign) on the tilt's column its no-load speed is 14.9 / 20 rad/s: a
+    step of 1.03 times the 12 V threshold is within (14.9 + 4.3343) / 20 x 2 T + one count.
+    NaN readings are passed over; a reading beyond the sensor's 15 V range is no voltage the
+    drive gave, and a column of nothing else leaves the supply's reach."""
     reach = drive_reach(guard)
     step = 1.03 * THRESHOLD[1]
-    assert step < 2 * (15.0 + BACK_TILT) / 20.0 * PERIOD + COUNT[1]
-    assert find_jumps(_still_run(step, volts=15.0), reach, PERIOD) == []
+    assert step < 2 * (14.9 + BACK_TILT) / 20.0 * PERIOD + COUNT[1]
+    assert find_jumps(_still_run(step, volts=14.9), reach, PERIOD) == []
+    assert find_jumps(_still_run(step, volts=-14.9), reach, PERIOD) == []
+    run = _still_run(step, volts=-14.9)
+    run.voltage[::3] = np.nan
+    assert find_jumps(run, reach, PERIOD) == []
     assert len(find_jumps(_still_run(step, volts=11.0), reach, PERIOD)) == 1  # the supply's
+    assert len(find_jumps(_still_run(step, volts=1e6), reach, PERIOD)) == 1  # beyond 15 V
+    assert len(find_jumps(_still_run(step, volts=np.nan), reach, PERIOD)) == 1
+
+
+def test_a_joint_without_a_drive_is_not_checked(guard):
+    """The tilt described as torque-driven (``drive: null``, no encoder): any step of its is
+    no jump, the pan's are checked as before."""
+    from dataclasses import replace
+
+    tilt = replace(guard.joints[1], drive=None, encoder=None)
+    reach = drive_reach(replace(guard, joints=(guard.joints[0], tilt)))
+    assert reach.speeds()[1] == np.inf
+    assert find_jumps(_still_run(100 * THRESHOLD[1], joint=1), reach, PERIOD) == []
+    assert len(find_jumps(_still_run(1.03 * THRESHOLD[0], joint=0), reach, PERIOD)) == 1
+
+
+def test_gravity_of_either_sign_and_an_unlimited_joint_count(guard):
+    """The arm's COM mirrored through the tilt axis (x 0.12 -> -0.32 m: the same 0.22091 m
+    lever on the other side) turns gravity's torque negative over the whole travel: the same
+    back-drive. Without position limits the tilt's poses span the circle: the same peak."""
+    from dataclasses import replace
+
+    arm = guard.links[1]
+    mirrored = replace(arm, com=np.array([-0.32, 0.02, 0.0]))
+    reach = drive_reach(replace(guard, links=(guard.links[0], mirrored)))
+    assert reach.back_drive_v[1] == pytest.approx(BACK_TILT, rel=1e-3)
+    tilt = guard.joints[1]
+    free = replace(tilt, limits=replace(tilt.limits, position=None))
+    reach = drive_reach(replace(guard, joints=(guard.joints[0], free)))
+    assert reach.back_drive_v[1] == pytest.approx(BACK_TILT, rel=2e-3)
+
+
+def test_a_foreign_run_off_the_tick_grid_is_not_checked(guard):
+    """A foreign log's host times may come in bursts: without ticks nothing is checked."""
+    from dataclasses import replace
+
+    run = replace(_still_run(100 * THRESHOLD[1]), ticks=None)
+    assert find_jumps(run, drive_reach(guard), PERIOD) == []
 
 
 def test_rows_further_apart_may_step_further(guard):

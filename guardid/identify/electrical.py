@@ -14,10 +14,11 @@ below one period and L is then poorly identifiable).
 compensated, below), and the sandwich (White) one, (A^T A)^-1 (sum_k r_k^2 a_k a_k^T)
 (A^T A)^-1. A few rows far off the equation pull R and Ke by many homoscedastic std, and
 the sandwich widens the std to their pull: rows cut out of a variant log with the ticks
-renumbered, the step at the cut 0.9 of the jump threshold (so not split,
+renumbered, the step at the cut 0.82 of the jump threshold (so not split,
 :mod:`guardid.identify.jumps`), put the pan's Ke 11 std off (0.02479 +- 1.9e-5 against
-0.025); with the sandwich 1.05 std (+- 2.0e-4). On 690 intact logs of five robots the std
-is 1.035 times the homoscedastic one at the median, 1.48 at most (2026-11-29).
+0.025); with the sandwich 1.05 std (+- 2.0e-4). On 690 intact logs of five robots Ke's std
+is 1.035 times the homoscedastic one at the median, 1.48 at most; R's 1.015 and 1.72
+(2026-11-29).
 """
 
 from __future__ import annotations

@@ -25,15 +25,18 @@ a jump (the count: the encoder's rounding can add up to one to a step).
 :data:`JUMP_MARGIN` = 2 covers what the bound leaves out: a Ke up to 25 % below the
 description's (identify refuses a fitted Ke further off), the Coriolis and centrifugal
 torques, a gravity peak between the sampled poses, the supply's ripple. Honest logs step
-far inside it: over 714 captures of five robots (guard, coarse, modified, third, variant;
+inside it: over 714 captures of five robots (guard, coarse, modified, third, variant;
 Fourier, Schroeder and sines excitations, a start with the PID saturated; 8 s to 1 h) the
-largest step was 0.37 of the threshold, the median log's 0.17
+largest step was 0.37 of the threshold, the median log's 0.17; an outside review's 88 fresh
+captures (starts up to 2^20 counts away, the supply up to 50 % over, a payload added) reached
+0.47, and 0.57 with the voltage sensor clipping at its range
 (``bench/results/jumps_2026-11-29.txt``). A joint that does outrun its drive (coasting
 under gravity with the bridge off) is split there too: a warning line, and the rows at the
 two new ends.
 
 A joint without a drive (its effort a measured torque), a description without joints (the
-flexible link) or a torque log has no reach: nothing is checked there.
+flexible link), a torque log or a run off the tick grid (a foreign log, whose host times
+may come in bursts) has no reach: nothing is checked there.
 """
 
 from __future__ import annotations
@@ -55,24 +58,30 @@ UNLIMITED_TRAVEL = {"revolute": math.pi, "prismatic": 1.0}
 class Reach:
     """Per joint of a description: ``ke_n`` [V s/rad | V s/m] (Ke N of the drive; inf
     without one), ``back_drive_v`` [V] (R max|g_j| / (eta Kt N): gravity's most), ``supply_v``
-    [V] and ``count`` [rad | m] (one encoder count at the joint, 0 without an encoder)."""
+    [V], ``count`` [rad | m] (one encoder count at the joint, 0 without an encoder) and
+    ``sensor_range_v`` [V] (the voltage sensor's full scale; inf without one)."""
 
     names: tuple[str, ...]
     ke_n: np.ndarray
     back_drive_v: np.ndarray
     supply_v: np.ndarray
     count: np.ndarray
+    sensor_range_v: np.ndarray
 
     def speeds(self, voltage=None) -> np.ndarray:
-        """Per joint the fastest speed [rad/s | m/s] its drive gives (module docstring); the
-        volts are the supply or, when larger, the largest |voltage| of ``voltage`` (N, n)
-        [V] (a run's column)."""
+        """Per joint the fastest speed [rad/s | m/s] its drive gives (module docstring), inf
+        for a joint without a drive; the volts are the supply or, when larger, the largest
+        finite |voltage| of ``voltage`` (N, n) [V] (a run's column), taken at most up to
+        the voltage sensor's range (a reading beyond it is no voltage the drive gave)."""
         volts = self.supply_v
         if voltage is not None:
-            v = np.asarray(voltage, dtype=float)
+            v = np.abs(np.asarray(voltage, dtype=float))
             if v.ndim == 2 and v.shape[1] == len(volts) and len(v):
-                volts = np.maximum(volts, np.nanmax(np.abs(v), axis=0))
-        return (volts + self.back_drive_v) / self.ke_n
+                v = np.where(np.isfinite(v) & (v <= self.sensor_range_v), v, 0.0)
+                volts = np.maximum(volts, v.max(axis=0))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            speed = (volts + self.back_drive_v) / self.ke_n
+        return np.where(np.isfinite(self.ke_n), speed, np.inf)
 
 
 def drive_reach(description) -> Reach | None:
@@ -84,15 +93,18 @@ def drive_reach(description) -> Reach | None:
     gravity = _largest_gravity(description)
     n = len(joints)
     ke_n, back, supply, count = (np.full(n, np.inf), np.zeros(n), np.zeros(n), np.zeros(n))
+    sensor_range = np.full(n, np.inf)
     for k, joint in enumerate(joints):
         d = joint.drive
         if d is not None:
             ke_n[k] = d.ke * d.gear_ratio
             back[k] = d.resistance * gravity[k] / (d.efficiency * d.kt * d.gear_ratio)
             supply[k] = d.supply_voltage
+        if joint.voltage_sensor is not None:
+            sensor_range[k] = joint.voltage_sensor.range
         per_rad = joint.counts_per_rad
         count[k] = 1.0 / per_rad if per_rad else 0.0
-    return Reach(tuple(j.name for j in joints), ke_n, back, supply, count)
+    return Reach(tuple(j.name for j in joints), ke_n, back, supply, count, sensor_range)
 
 
 def _largest_gravity(description) -> np.ndarray:
@@ -142,9 +154,10 @@ class Jump:
 def find_jumps(run, reach: Reach | None, period_s: float) -> list[Jump]:
     """The jumps of ``run`` (a Run: t [s], q (N, n), voltage [V]) against ``reach``, in
     order: per row pair the joint whose step is furthest beyond its limit. None of a run
-    whose effort is a measured torque, or without a reach."""
-    if reach is None or run.torque or len(run.t) < 2:
-        return []
+    whose effort is a measured torque, of a run off the tick grid (a foreign log), or
+    without a reach."""
+    if reach is None or run.torque or run.ticks is None or len(run.t) < 2:
+        return []  # a foreign log's host times may come in bursts: no rows' time to trust
     q = np.asarray(run.q, dtype=float)
     if q.ndim != 2 or q.shape[1] != len(reach.names):
         return []

@@ -156,7 +156,7 @@ def split_run(run, limit_ticks: int, min_rows: int = 10, reach=None):
     ``limit_ticks`` lost ticks and at every jump against ``reach`` (a
     :class:`~guardid.identify.jumps.Reach`, or None: no jump is looked for); segments of
     fewer than ``min_rows`` rows are dropped. A run without ticks (a foreign log off the
-    tick grid) is split at its jumps only."""
+    tick grid) is returned whole."""
     period = _period(run) if len(run.t) > 1 else math.nan
     jumps = find_jumps(run, reach, period)
     cuts = np.array([j.index for j in jumps], dtype=np.int64)
@@ -198,12 +198,11 @@ def split_runs(
     runs = list(runs)
     reach = drive_reach(description) if description is not None else None
     timed = [r for r in runs if r.ticks is not None and len(r.t) > 1]
-    if not timed and not any(find_jumps(r, reach, math.nan) for r in runs):
+    if not timed:
         return Split(runs)
     harmonic = highest_harmonic_hz or getattr(runs[0], "highest_harmonic_hz", None)
-    usable = timed or [r for r in runs if len(r.t) > 1]
-    fc = float(cutoff_hz) if cutoff_hz else highest_cutoff_hz(usable, harmonic)
-    period = min(_period(r) for r in usable)
+    fc = float(cutoff_hz) if cutoff_hz else highest_cutoff_hz(timed, harmonic)
+    period = min(_period(r) for r in timed)
     limit = bridge_limit_ticks(fc, period)
     least = min_segment_rows(fc, period)
     out = Split([], limit_ticks=limit, cutoff_hz=fc)
