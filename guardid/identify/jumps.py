@@ -130,7 +130,8 @@ def _largest_gravity(description) -> np.ndarray:
 class Jump:
     """A step of ``step`` [rad | m] of ``joint`` between the row at ``at_s`` [s] (run time)
     and the next, ``limit`` [rad | m] being the most its drive gives in that time; the run
-    is split after the row (``index``: the first row after the jump)."""
+    is split after the row (``index``: the first row after the jump); ``period_s`` [s] the
+    run's tick (:meth:`guardid.identify.segments.Split.lines` says what the split cost)."""
 
     path: str
     at_s: float
@@ -139,16 +140,6 @@ class Jump:
     step: float
     limit: float
     period_s: float
-
-    def line(self, cutoff_hz: float) -> str:
-        """One line: where, how far, what it cost at cut-off ``cutoff_hz`` [Hz]."""
-        edge = 2 * math.ceil(1.0 / (cutoff_hz * self.period_s))  # a cut-off period per end
-        return (
-            f"{self.path}: jump after {self.at_s:.3f} s: {self.joint} moved {self.step:.3g} "
-            f"between two rows, {self.step / self.limit:.3g} x the {self.limit:.3g} its motor "
-            f"can drive it (rows lost without a gap in the ticks: a log cut or joined by hand?)"
-            f": run split there, conditioned as two; cost {edge} rows at the new ends"
-        )
 
 
 def find_jumps(run, reach: Reach | None, period_s: float) -> list[Jump]:

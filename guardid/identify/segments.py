@@ -136,19 +136,30 @@ class Split:
         fc = float(cutoff_hz or self.cutoff_hz)
         out = []
         for g in self.gaps:
-            edge = 2 * math.ceil(1.0 / (fc * g.period_s))  # a cut-off period at each new end
+            edge = _new_end_rows(fc, g.period_s)
             out.append(
                 f"{g.path}: gap at {g.at_s:.3f} s: {g.lost} ticks ({g.length_s:.3g} s) lost, "
                 f"more than the {self.limit_ticks} a bridge may span at a {self.cutoff_hz:.3g} "
                 f"Hz cut-off: run split there, conditioned as two; cost {g.lost + edge} rows "
                 f"({g.lost} lost, {edge} at the new ends)"
             )
-        out += [j.line(fc) for j in self.jumps]
+        out += [
+            f"{j.path}: jump after {j.at_s:.3f} s: {j.joint} moved {j.step:.3g} between two "
+            f"rows, {j.step / j.limit:.3g} x the {j.limit:.3g} its motor can drive it (rows "
+            "lost without a gap in the ticks: a log cut or joined by hand?): run split there, "
+            f"conditioned as two; cost {_new_end_rows(fc, j.period_s)} rows at the new ends"
+            for j in self.jumps
+        ]
         out += [
             f"{name}: {rows} rows between gaps, too short to condition: not used"
             for name, rows in self.dropped
         ]
         return out
+
+
+def _new_end_rows(cutoff_hz: float, period_s: float) -> int:
+    """Rows [-] a split costs at its two new ends: a cut-off period at each."""
+    return 2 * math.ceil(1.0 / (cutoff_hz * period_s))
 
 
 def split_run(run, limit_ticks: int, min_rows: int = 10, reach=None):
@@ -157,16 +168,15 @@ def split_run(run, limit_ticks: int, min_rows: int = 10, reach=None):
     :class:`~guardid.identify.jumps.Reach`, or None: no jump is looked for); segments of
     fewer than ``min_rows`` rows are dropped. A run without ticks (a foreign log off the
     tick grid) is returned whole."""
-    period = _period(run) if len(run.t) > 1 else math.nan
+    if run.ticks is None or len(run.ticks) < 2:
+        return [run], [], [], []
+    period = _period(run)
     jumps = find_jumps(run, reach, period)
-    cuts = np.array([j.index for j in jumps], dtype=np.int64)
-    gaps = []
-    if run.ticks is not None and len(run.ticks) > 1:
-        lost = np.diff(np.asarray(run.ticks, dtype=np.int64)) - 1
-        at = np.flatnonzero(lost > limit_ticks) + 1
-        t = np.asarray(run.t, dtype=float)
-        gaps = [Gap(run.path, float(t[k - 1]), int(lost[k - 1]), period) for k in at]
-        cuts = np.union1d(cuts, at)
+    lost = np.diff(np.asarray(run.ticks, dtype=np.int64)) - 1
+    at = np.flatnonzero(lost > limit_ticks) + 1
+    t = np.asarray(run.t, dtype=float)
+    gaps = [Gap(run.path, float(t[k - 1]), int(lost[k - 1]), period) for k in at]
+    cuts = np.union1d([j.index for j in jumps], at).astype(np.int64)
     if not cuts.size:
         return [run], [], [], []
     bounds = np.concatenate([[0], cuts, [len(run.t)]])
