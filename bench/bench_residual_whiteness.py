@@ -44,7 +44,7 @@ def log_rows(log: Path, robot: str):
     description = load_robot(robot)
     model = build_model(description)
     names = [model.base.names[i] for i in free_columns(model, description)]
-    runs, _ = prepared_runs([load_run(str(log))], description)
+    runs, _, _ = prepared_runs([load_run(str(log))], description)
     rows = stacked_rows([run_signals(r, runs) for r in runs], description, None,
                         highest_harmonic_hz=runs[0].highest_harmonic_hz)  # fmt: skip
     c = rows.cond

@@ -104,7 +104,7 @@ def main() -> None:
     out = {"every k": ([], []), "all": ([], []), "mean of k": ([], [])}
     out.update({f"all, NW {m}k": ([], []) for m in NW_WINDOWS})
     for seed in range(a.first_seed, a.first_seed + a.seeds):
-        runs, _ = prepared_runs([load_run(f"{a.keep}/{a.set}_{seed}.csv")], desc)
+        runs, _, _ = prepared_runs([load_run(f"{a.keep}/{a.set}_{seed}.csv")], desc)
         sig = [run_signals(r, runs) for r in runs]
         hh = runs[0].highest_harmonic_hz
         every = stacked_rows(sig, desc, ConditioningOptions(), highest_harmonic_hz=hh)

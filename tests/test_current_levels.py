@@ -160,7 +160,7 @@ def test_a_guardid_log_reaches_the_fit_on_the_adc_levels(gap_guard_captures):
     description = load_robot("guard")
     run = load_run(gap_guard_captures[1])
     logged = np.array(run.current)
-    (prepared,), _ = prepared_runs([run], description)
+    (prepared,), _, _ = prepared_runs([run], description)
     levels = prepared.current
     assert np.array_equal(run.current, logged)  # the caller's run is left as it was
     assert np.all(np.abs(levels - logged) <= 0.5e-3 + 1e-12)
@@ -177,7 +177,7 @@ def test_a_log_in_other_units_keeps_its_current(gap_guard_captures):
     run.current = np.array(run.current)
     run.current[:, 1] += 0.0003
     kept = run.current[:, 1].copy()
-    (prepared,), _ = prepared_runs([run], description)
+    (prepared,), _, _ = prepared_runs([run], description)
     assert np.array_equal(prepared.current[:, 1], kept)
     codes = prepared.current[:, 0] / STEP_A
     assert np.array_equal(codes, np.round(codes))

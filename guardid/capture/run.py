@@ -112,6 +112,7 @@ def capture(
     reconnect: Callable[[], Session] | None = None,
     notify: Callable[[str], None] | None = None,
     feedforward=None,
+    zero_rest_s: float | None = 0.0,
 ) -> CaptureResult:
     """Capture ``duration_s`` seconds of ``trajectory``; write ``log_path``.
 
@@ -132,7 +133,12 @@ def capture(
     checked with :func:`guardid.feedforward.check_supply`, the firmware's INFO having the
     feedforward capability): each setpoint goes with its feedforward voltage (SETPOINT_FF).
     The footer's ``tracking_error`` holds each joint's rms and largest |setpoint - angle|
-    [rad] over the rows, whatever ended the run. Raises :class:`LinkError` after closing the
+    [rad] over the rows, whatever ended the run. ``zero_rest_s`` > 0: once the trajectory
+    is done (or ``until`` ended it), the robot is put idle and, when its joints stand still,
+    the current sensors are read for this long [s] (None: :func:`guardid.capture.zero.
+    default_rest_s` of the run's length; 0: not read); their zero goes to the footer's
+    ``current_zero`` (:func:`guardid.capture.zero.measure_current_zero`; a link error
+    there leaves ``not_measured``, the rows kept). Raises :class:`LinkError` after closing the
     log when the link fails, :class:`LogWriteError` (after putting the robot idle) when the
     log cannot be written; the rows written until then stay in the file.
 
@@ -209,6 +215,7 @@ def capture(
                                       reached, n_ticks, notify)  # fmt: skip
                 if legs.rows is not None:
                     _configure(session, description)
+        zero = _current_zero(session, description, zero_rest_s, reached * period)
         _idle(session, stop)
     except (CaptureStopped, KeyboardInterrupt) as exc:
         ended, n_ticks = "interrupted", reached  # the ticks this run came to
@@ -237,8 +244,28 @@ def capture(
             ended = f"error: {type(exc).__name__}: {exc}"
             writer.close(_footer(session, n_ticks, ended, started, err, names, legs))
         raise
-    writer.close(_footer(session, n_ticks, ended, started, err, names, legs))
+    footer = _footer(session, n_ticks, ended, started, err, names, legs)
+    if zero is not None:
+        footer["current_zero"] = zero
+    writer.close(footer)
     return _result(session, writer, n_ticks, err, ended)
+
+
+def _current_zero(session: Session, description, rest_s: float | None,
+                  run_s: float) -> dict | None:  # fmt: skip
+    """The footer's ``current_zero`` after a run of ``run_s`` seconds (None when ``rest_s``
+    is 0: not asked for; None: the default rest)."""
+    from guardid.capture.zero import default_rest_s, measure_current_zero
+
+    if rest_s is None:
+        rest_s = default_rest_s(run_s)
+    if rest_s <= 0:
+        return None
+
+    try:
+        return measure_current_zero(session, description, rest_s)
+    except LinkError as exc:
+        return {"not_measured": f"link error: {exc}"}
 
 
 def _idle(session: Session, stop: StopRequest | None) -> None:

@@ -129,9 +129,21 @@ def _load_trajectory(path: str):
     "than a motor's supply voltage, or when the firmware's INFO lacks the feedforward "
     "capability (protocol version 2).",
 )
+@click.option(
+    "--zero-rest",
+    "zero_rest_s",
+    type=click.FloatRange(min=0.0),
+    default=None,
+    help="After the trajectory, put the robot idle and, once its joints stand still, read "
+    "the current sensors for this long [s]: their zero goes to the log's footer "
+    "(current_zero), and identify subtracts it when it differs from 0 beyond its noise "
+    "(docs/IDENTIFY.md 'The current sensors' zero'). 0: not read. The rows read at rest "
+    "are not logged. [default: 10 % of the run's length, 2 s to 120 s]",
+)
 def capture(
     port, baud, robot, trajectory_path, duration, periods, timeout, no_reset, output, force,
     quiet, online, online_effort, until_std, stream_url, reconnect_s, feedforward_path,
+    zero_rest_s,
 ):  # fmt: skip
     """Run the trajectory on the robot in closed loop and record telemetry to OUTPUT.
 
@@ -151,7 +163,7 @@ def capture(
                 port, baud, robot, trajectory_path, duration, periods, timeout, output,
                 force, quiet, online, online_effort, stop, until_std, stream_url,
                 reset=not no_reset, reconnect_s=reconnect_s,
-                feedforward_path=feedforward_path,
+                feedforward_path=feedforward_path, zero_rest_s=zero_rest_s,
             )  # fmt: skip
         except CaptureStopped:
             end_line()
@@ -186,7 +198,7 @@ def capture(
 def _capture(
     port, baud, robot, trajectory_path, duration, periods, timeout, output, force, quiet,
     online, online_effort, stop, until_std=None, stream_url=None, reset=True,
-    reconnect_s=None, feedforward_path=None,
+    reconnect_s=None, feedforward_path=None, zero_rest_s=None,
 ):  # fmt: skip
     """Check everything, then capture; return (CaptureResult, online tracker or None,
     :class:`guardid.online.information.UntilStd` or None, :class:`guardid.live.udp.UdpStream`
@@ -299,6 +311,7 @@ def _capture(
             reconnect=None if reconnect_s is None else reconnector.reconnect,
             notify=_notify,
             feedforward=feedforward,
+            zero_rest_s=zero_rest_s,
         )
     finally:
         for p in reconnector.ports:

@@ -246,6 +246,18 @@ _SPACED_ROWS_HELP = (
 @click.option("--eta", type=_POSITIVE, default=1e-3, show_default=True, help="Gradient gain.")
 @click.option("--current-units", is_flag=True, help="Identify in current units (gain unknown).")
 @click.option(
+    "--current-zero",
+    "current_zero",
+    type=click.Choice(["subtract", "ignore"]),
+    default="subtract",
+    show_default=True,
+    help="The current sensors' zero a guardid log's footer gives (capture --zero-rest reads "
+    "it at rest after the run): subtract takes it off the joint's currents and every std "
+    "counts that zero's own error; ignore leaves the currents as logged (for sensors "
+    "zeroed exactly some other way). A zero beyond 4 of its std errors from 0 is a "
+    "warning. docs/IDENTIFY.md 'The current sensors' zero'.",
+)
+@click.option(
     "-o",
     "--output",
     default=None,
@@ -289,7 +301,7 @@ _SPACED_ROWS_HELP = (
 @_foreign_options
 def identify(
     log, robot, method, cutoff, equation, no_quantisation, every_tick, spaced_rows, beta, lam, eta,
-    current_units, output,
+    current_units, current_zero, output,
     plot_path, report_path, parallel_hz, consistent, bootstrap_k, cv, force, **foreign,
 ):  # fmt: skip
     """Identify the robot's base parameters and motor constants from LOG [LOG ...].
@@ -345,6 +357,7 @@ def identify(
     options = IdentifyOptions(
         methods=methods, conditioning=conditioning, hopfield=HopfieldSettings(beta=beta),
         rls_lambda=lam, gradient_eta=eta, in_current_units=current_units,
+        current_zero=current_zero,
     )  # fmt: skip
     if cv:
         _cross_validate(logs, runs, description, options)
@@ -369,7 +382,7 @@ def identify(
                           "without --every-tick)")  # fmt: skip
     from guardid.identify.prepare import prepared_runs
 
-    whole, (runs, _) = runs, prepared_runs(runs, description, options)  # as identify split them
+    whole, (runs, _, _) = runs, prepared_runs(runs, description, options)  # as identify split them
     if result.untrusted and not force:
         raise UntrustedResult(
             f"{log}: identification cannot be trusted: {'; '.join(result.untrusted)} "

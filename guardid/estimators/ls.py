@@ -264,6 +264,16 @@ class LeastSquares(Estimator):
         self._add_error_structure(A3, raw)
         return self
 
+    def effect_of(self, A, d) -> np.ndarray:
+        """(p, k): how ``theta_`` moves per unit of each of k changes ``d`` (N, n_out, k) of
+        the y it was fitted on (on rows ``A`` (N, n_out, p), those of the fit), this fit's
+        row weights and column-noise compensation held: for them theta_ is linear in y
+        (WLS's weights, estimated from y, move too, which this leaves out)."""
+        A3 = np.asarray(A, dtype=float)
+        d3 = np.asarray(d, dtype=float)
+        w2 = np.asarray(self._w if self._w is not None else np.ones(A3.shape[1])) ** 2
+        return self._bread @ np.einsum("mjp,j,mjk->pk", A3, w2, d3)
+
     def _add_error_structure(self, A3: np.ndarray, raw: np.ndarray) -> None:
         """The final fit's ``cov_`` with the neighbours' and the groups' shared errors; a
         fit whose white covariance or residuals are not finite (a column the rows never

@@ -41,9 +41,11 @@ def fold_scores(runs, description, options):
             values = _all_base_values(description, nominal)
             values.update(dict(zip(result.names, result.results[m].theta, strict=True)))
             sets.append(ParameterSet(m.upper(), values, description))
+        from guardid.identify.current_zero import subtract_zeros
         from guardid.identify.prepare import current_on_adc_levels
 
         held = current_on_adc_levels(held, description)  # scored on what the fit reads
+        (held,), _ = subtract_zeros([held], description, options.current_zero)
         parts = split_runs([held], cutoff_hz, description=description).runs  # the same rule
         conds = [
             stacked_rows(

@@ -40,7 +40,9 @@ class FormRows:
     the stacked rows keep ``conds`` (the momentum form: what
     :func:`~guardid.identify.momentum_rows.momentum_rows_of` needs); ``lag_ticks``: rows
     this many ticks apart or closer share their noise (the momentum form's causal filter),
-    0 when the rows' errors are taken as independent.
+    0 when the rows' errors are taken as independent; ``offset_columns``: per run (M_i, n,
+    n) the usable rows' friction-offset column of each joint (the momentum form, when every
+    joint has one; else None).
     """
 
     conds: list
@@ -53,6 +55,7 @@ class FormRows:
     column_noise: ColumnNoise | None = None
     keep_runs: bool = False
     lag_ticks: int = 0
+    offset_columns: list | None = None
 
 
 def momentum_unsuitable(runs, model, effort_is_torque, options) -> str:

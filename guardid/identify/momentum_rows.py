@@ -65,14 +65,16 @@ def momentum_rows(runs, description, options, why, model, free, in_current_units
         spacing = spaced
     fixed = [i for i in range(len(model.base.names)) if i not in free]
     base = model.base.values(model.params)
+    offsets = offset_columns(model)
 
     def mean_ticks(spacing):
         """Rows between every tick and the spaced ones: the mean of their spacing's ticks."""
         return spacing if 1 < spacing < spaced else 1
 
     def rows_every(spacing):
-        """(conds, As, ys, noises): every run's usable rows, one every ``spacing`` ticks."""
-        conds, As, ys, noises = [], [], [], []
+        """(conds, As, ys, noises, Os): every run's usable rows, one every ``spacing``
+        ticks, and their friction-offset columns (:func:`offset_columns`)."""
+        conds, As, ys, noises, Os = [], [], [], [], []
         for run in runs:
             t, q, effort, *rest = run
             cond, A_all, y = mom.condition_momentum(
@@ -91,10 +93,12 @@ def momentum_rows(runs, description, options, why, model, free, in_current_units
             # one copy of the kept rows' identified columns; A_all freed before the next run
             As.append(A_all[np.ix_(np.flatnonzero(m), np.arange(A_all.shape[1]), free)])
             ys.append(y[m])
+            if offsets is not None:
+                Os.append(A_all[np.ix_(np.flatnonzero(m), np.arange(A_all.shape[1]), offsets)])
             del A_all
-        return conds, As, ys, noises
+        return conds, As, ys, noises, Os
 
-    conds, As, ys, noises = rows_every(spacing)
+    conds, As, ys, noises, Os = rows_every(spacing)
     spacing_note = []
     if options.decimate is None and 1 < spacing < spaced:
         spacing_note = [f"rows every {spacing} ticks, each the mean of its {spacing} ticks: at "
@@ -109,7 +113,7 @@ def momentum_rows(runs, description, options, why, model, free, in_current_units
                         f"over a window of {lag + mean_ticks(spacing)} ticks need {need}; "
                         "docs/IDENTIFY.md)"]  # fmt: skip
         spacing = spaced
-        conds, As, ys, noises = rows_every(spacing)
+        conds, As, ys, noises, Os = rows_every(spacing)
     noise, note = _noise_of_runs(noises)
     used = replace(used, quantisation=noise is not None)
     choice = CutoffChoice(float(cutoff), reason.split(": ", 1)[-1], [float(cutoff)])
@@ -119,7 +123,17 @@ def momentum_rows(runs, description, options, why, model, free, in_current_units
     lag = lag + mean_ticks(spacing) - 1 if spacing < spaced else 0
     return FormRows(conds, As, ys, used, choice if options.cutoff_hz is None else None,
                     [reason], [note, *spacing_note], noise, keep_runs=True,
-                    lag_ticks=lag)  # fmt: skip
+                    lag_ticks=lag, offset_columns=Os if offsets is not None else None)  # fmt: skip
+
+
+def offset_columns(model) -> list[int] | None:
+    """Indices in ``model``'s base columns of each joint's friction offset ``Fo<j>``, in
+    joint order (whether identified or not: a constant torque on the joint, which is also
+    what a current sensor's zero offset adds, :mod:`guardid.identify.current_zero`); None
+    when a joint has none (no friction model)."""
+    names = list(model.base.names)
+    wanted = [f"Fo{j + 1}" for j in range(len(model.description.joints))]
+    return [names.index(w) for w in wanted] if all(w in names for w in wanted) else None
 
 
 def quantisation_noise_of(cond, rest, description, options, model, free, base, gain):

@@ -25,6 +25,8 @@ from guardid.conditioning.options import ConditioningOptions
 from guardid.dynamics import build_model
 from guardid.errors import GuardidError
 from guardid.estimators import LeastSquares, d_tau
+from guardid.identify.current_zero import MODES as ZERO_MODES
+from guardid.identify.current_zero import ZeroOutcome, zero_stage
 from guardid.identify.electrical import MotorEstimate, identify_motor_runs, motor_doubts
 from guardid.identify.equation import free_columns
 from guardid.identify.methods import FitRows, MethodFit, methods_for
@@ -68,7 +70,9 @@ class IdentifyOptions:
     ``conditioning``: :class:`ConditioningOptions` (None: all automatic); ``hopfield``:
     :class:`HopfieldSettings`; ``rls_lambda``: RLS forgetting factor in (0, 1];
     ``gradient_eta``: the gradient estimator's gain; ``in_current_units``: no
-    current-to-torque gain (estimates in the effort's unit).
+    current-to-torque gain (estimates in the effort's unit); ``current_zero``: what to do
+    with the current sensors' zero a log's footer gives (``subtract``: take it off the
+    currents, every std counting its error; ``ignore``; :mod:`guardid.identify.current_zero`).
     Whether the effort is measured torque comes with the data
     (:attr:`~guardid.identify.runs.Run.torque`).
     """
@@ -79,8 +83,12 @@ class IdentifyOptions:
     rls_lambda: float = 1.0
     gradient_eta: float = 1e-3
     in_current_units: bool = False
+    current_zero: str = "subtract"
 
     def __post_init__(self):
+        if self.current_zero not in ZERO_MODES:
+            raise ValueError(f"current_zero: {self.current_zero!r} is not one of "
+                             f"{', '.join(ZERO_MODES)}")  # fmt: skip
         m = self.methods
         m = [x.strip() for x in m.split(",") if x.strip()] if isinstance(m, str) else m
         object.__setattr__(self, "methods", tuple(m))
@@ -127,6 +135,7 @@ class Identification:
     cutoff_reason: str = ""
     rows_summary: str = ""
     untrusted: list[str] = field(default_factory=list)  # guardid.identify.untrusted; [] = trusted
+    current_zero: ZeroOutcome | None = None  # the current sensors' zero stage (None: not made)
 
 
 HARMONIC_CUTOFF_FACTOR = HARMONIC_FACTOR  # kept for callers; see conditioning.bandwidth
@@ -156,7 +165,7 @@ def identify(runs, description, options: IdentifyOptions | None = None) -> Ident
     effort is motor current in amperes. The options used, cut-off resolved, are in the result.
     """
     options = options or IdentifyOptions()
-    runs, split = prepared_runs(runs, description, options)
+    runs, split, zeros = prepared_runs(runs, description, options)
     torque = effort_is_torque(runs)
     methods = methods_for(options.methods)  # unknown names refused before any work
     for check in dict.fromkeys(m.check for m in methods if m.check is not None):
@@ -180,7 +189,12 @@ def identify(runs, description, options: IdentifyOptions | None = None) -> Ident
     return_freed_memory()  # the conditioning's per-tick temporaries, before the fit
     fit_rows = _fit_rows(rows, runs, description, options, torque)
     results = _fit_all(methods, fit_rows)  # the estimators, in the order asked
+    zero = zero_stage(fit_rows, results, zeros.taken, description, options.current_zero,
+                      zeros.lines)  # fmt: skip
     result = _result_of(fit_rows, results, options, torque)  # checks, warnings, motors
+    result.current_zero = zero
+    result.notes += zero.lines
+    result.warnings[:0] = zeros.warnings
     if split is not None:
         result.warnings[:0] = split.lines(result.cutoff_hz)
     return result

@@ -20,20 +20,27 @@ from guardid.identify.segments import split_runs
 
 
 def prepared_runs(runs, description, options=None):
-    """(runs, Split or None): what :func:`~guardid.identify.pipeline.identify` conditions
-    ``runs`` as: each guardid log's columns in ``description``'s joint order, the runs
-    split at their long gaps (unless the caller split them). For callers that condition
-    the same runs again (the consistent fit). ``options``: the
+    """(runs, Split or None, zeros): what :func:`~guardid.identify.pipeline.identify`
+    conditions ``runs`` as: each guardid log's columns in ``description``'s joint order,
+    its currents on the ADC's levels and less the current sensors' zero its footer gives
+    (as ``options.current_zero`` says: :func:`~guardid.identify.current_zero.subtract_zeros`;
+    ``zeros`` its :class:`~guardid.identify.current_zero.ZerosRead`), the runs split at
+    their long gaps (unless the caller split them). For callers that condition the same
+    runs again (the consistent fit). ``options``: the
     :class:`~guardid.identify.pipeline.IdentifyOptions` (its conditioning's cut-off sets the
     longest gap bridged; None: all automatic)."""
+    from guardid.identify.current_zero import ZerosRead, subtract_zeros
+
     runs = [_in_joint_order(r, description) for r in runs]
     if not runs:
-        return runs, None
+        return runs, None, ZerosRead()
     runs = [current_on_adc_levels(r, description) for r in runs]
     check_same_rate(runs)
+    mode = options.current_zero if options is not None else "subtract"
+    runs, zeros = subtract_zeros(runs, description, mode)
     conditioning = options.conditioning if options is not None else None
     cutoff_hz = conditioning.cutoff_hz if conditioning is not None else None
-    return split_at_gaps(runs, cutoff_hz, description)
+    return (*split_at_gaps(runs, cutoff_hz, description), zeros)
 
 
 def current_on_adc_levels(run, description, in_place: bool = False):

@@ -87,6 +87,8 @@ def table(result, methods, description=None) -> str:
         f"rows {result.rows}, cut-off {result.cutoff_hz:.3g} Hz, cond(A) {result.cond:.4g}, "
         f"effort in {unit}; d_tau {fit}; stacked error {stacked}"
     )
+    if getattr(result, "current_zero", None) is not None:
+        lines += result.current_zero.lines
     if any(result.results[m].output_spread is not None for m in methods):
         lines.append(SPREAD_NOTE)
     for motor in result.motors:
@@ -143,6 +145,8 @@ def to_yaml_dict(result, description, log_path) -> dict:
             }
             for mo in result.motors
         ]
+    if result.current_zero is not None:
+        out["current_zero"] = result.current_zero.to_dict(description)
     raw = robot_mapping(description)
     if raw is not None:
         out["robot_description"] = raw

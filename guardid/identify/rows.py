@@ -55,6 +55,8 @@ class Rows:
     remove, else None. ``period_groups``: :func:`period_groups`; ``row_ticks`` (M,): each
     row's tick (:func:`row_ticks`) and ``lag_ticks``: how near rows share their noise (LS
     and WLS count it in their std; 0: not counted, ``row_ticks`` None).
+    ``offset_columns`` (M, n, n): the rows' friction-offset column of each joint [torque
+    units per N m], or None (:attr:`~guardid.identify.equation.FormRows.offset_columns`).
     """
 
     cond: object
@@ -69,6 +71,7 @@ class Rows:
     period_groups: np.ndarray | None = None
     row_ticks: np.ndarray | None = None
     lag_ticks: int = 0
+    offset_columns: np.ndarray | None = None
 
     def __iter__(self):  # (cond, A, y), as before
         return iter((self.cond, self.A, self.y))
@@ -164,7 +167,8 @@ def stacked_rows(
     return Rows(joined, A, y, form.options, form.choice, doubts,
                 form.conds if form.keep_runs else [], column_noise=form.column_noise,
                 period_groups=groups, row_ticks=ticks,
-                lag_ticks=form.lag_ticks if ticks is not None else 0)  # fmt: skip
+                lag_ticks=form.lag_ticks if ticks is not None else 0,
+                offset_columns=_joined(form.offset_columns))  # fmt: skip
 
 
 def row_ticks(conds, lag_ticks: int) -> np.ndarray:
@@ -217,6 +221,13 @@ def phase_group_count(groups) -> int:
     """The groups of :func:`period_groups`' labels that hold two rows or more (the phases;
     the rows of a run not grouped are a group each and are not counted)."""
     return int(np.count_nonzero(np.unique(groups, return_counts=True)[1] > 1))
+
+
+def _joined(blocks):
+    """The runs' blocks stacked (None stays None)."""
+    if blocks is None:
+        return None
+    return blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
 
 
 def _stacked(As, ys, free):

@@ -9,6 +9,7 @@ import numpy as np
 
 from guardid.errors import LogFormatError
 from guardid.excitation.sines import common_period
+from guardid.identify.current_zero import footer_zero
 from guardid.log import read_log
 
 
@@ -21,7 +22,8 @@ class Run:
     samples, used as they are). ``highest_harmonic_hz``: the excitation's highest frequency
     [Hz] named by a guardid log's header (None when unknown: foreign logs);
     ``excitation_period_s``: the period [s] after which its excitation repeats (None when
-    unknown or not periodic).
+    unknown or not periodic); ``current_zero``: the footer's current sensors' zero per joint
+    name (:func:`guardid.identify.current_zero.footer_zero`; None: not read).
     """
 
     path: str
@@ -41,6 +43,7 @@ class Run:
     sample_period_s: float | None = None  # a guardid log's tick period [s]
     source: str | None = None  # the file a segment comes from (None: path is the file)
     excitation_period_s: float | None = None
+    current_zero: dict | None = None  # a guardid log footer's current sensors' zero read at rest
 
 
 def trajectory_highest_harmonic(trajectory: dict | None) -> float | None:
@@ -164,6 +167,7 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
         joint_names=tuple(joints),
         setpoint=setpoint,
         counts=counts,
+        current_zero=footer_zero(path, data.footer),
     )
 
 

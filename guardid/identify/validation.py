@@ -306,12 +306,14 @@ def validate_runs(runs, names, description, sets, options, current_units=False, 
     ``scores``, ``preds`` ((run, label) -> predicted effort) and ``head``.
     """
     from guardid.identify.checks import call_naming_logs
+    from guardid.identify.current_zero import subtract_zeros
     from guardid.identify.prepare import current_on_adc_levels
     from guardid.identify.rows import stacked_rows
     from guardid.identify.segments import split_runs
 
     torque = bool(runs[0].torque)
     runs = [current_on_adc_levels(r, description) for r in runs]  # as identify fitted them
+    runs, zeros = subtract_zeros(runs, description, "subtract")  # as identify does
     split = split_runs(runs, options.cutoff_hz, description=description)  # segments as runs
     if split.gaps or split.jumps:
         runs, names = split.runs, [r.path for r in split.runs]
@@ -335,6 +337,7 @@ def validate_runs(runs, names, description, sets, options, current_units=False, 
         keep.update(conds=conds, scores=scores, preds=preds, head=head, names=list(names))
     lines = [head + "; the same rows for every parameter set"]
     lines += [f"warning: {w}" for w in split.lines(options.cutoff_hz)]
+    lines += [*zeros.lines, *(f"warning: {w}" for w in zeros.warnings)]
     for s in sets:
         if s.defaulted:
             lines.append(f"{s.label}: not given, the robot description's values: "

@@ -50,7 +50,7 @@ def identify_consistent(runs, description, options=None):
     from guardid.identify.prepare import prepared_runs
 
     result = identify(runs, description, options)
-    runs, _ = prepared_runs(runs, description, options)  # the runs identify conditioned
+    runs, _, _ = prepared_runs(runs, description, options)  # the runs identify conditioned
     efforts = [(r.t, r.q, r.current) for r in runs]
     return result, add_consistent(result, efforts, description, bool(runs[0].torque))
 

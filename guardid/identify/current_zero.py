@@ -1,0 +1,287 @@
+"""The current sensors' zero: how far the std can trust it, and the zero a capture read.
+
+A current sensor that reads ``z`` [A] more than flows adds the constant torque
+``N eta Kt z`` to the joint's effort: in the regression that is the joint's friction-offset
+column ``Fo`` times ``N eta Kt z``. Over the tilt's short travel its gravity is nearly a
+constant torque and a pan's Coulomb and viscous friction share the rest, so the
+estimates move by ``G z`` (``G`` (b', n): :func:`zero_sensitivity`), and a fraction of an
+ADC step is more than a std on a minute's log (docs/IDENTIFY.md 'The current sensors' zero').
+
+Two things follow from ``G``:
+
+* the *tolerance*: per joint the zero error [A] that moves some parameter by one of its std
+  (the verdict method's). The std say nothing of a zero error; they hold while each sensor's
+  zero is known to well within it. Reported for every motor-current log in the momentum form.
+* a guardid log whose footer has ``current_zero`` (``capture --zero-rest``: the sensors read
+  at rest with the motors at 0 V) gives the zero itself, ``mean +- std_error``. ``subtract``
+  (default) takes it off the joint's currents, ``ignore`` leaves them (for a zero known
+  exactly some other way). A subtracted zero's own error moves the estimates by ``G``
+  times it: every covariance gains ``G S G^T`` (S the zeros' variances; each log's zero is
+  its own error, shared by its segments). Every read zero is taken off, not only one
+  beyond its noise: a zero left in because it was within, say, 4 of its std errors could
+  move a parameter by about 4 tolerances unseen. A zero beyond ZERO_SIGNIFICANCE std
+  errors from 0 is also a warning: the sensor is off, and zeroing it would spare the
+  widening.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from guardid.errors import LogFormatError
+
+ZERO_SIGNIFICANCE = 4.0
+"""A zero beyond this many of its std errors from 0 is a warning [-] (an honest sensor's
+reads beyond it in about 6e-5 of joints)."""
+MODES = ("subtract", "ignore")
+TELEMETRY_CURRENT_A = 1e-3  #: the telemetry's current unit [A]: a reading's resolution at least
+
+
+@dataclass(frozen=True)
+class SensorZero:
+    """One joint's zero as a capture read it: ``mean_a`` [A], ``std_error_a`` [A] (the
+    mean's std: the readings' std over sqrt(rows), and at least the resolution's
+    rounding when the readings are too quiet to dither it), ``rows`` read."""
+
+    mean_a: float
+    std_error_a: float
+    rows: int
+
+    @property
+    def significance(self) -> float:
+        """|mean| in std errors [-]."""
+        return abs(self.mean_a) / self.std_error_a if self.std_error_a > 0 else math.inf
+
+
+def footer_zero(path, footer: dict | None) -> dict | None:
+    """The footer's ``current_zero`` checked: ``{joint: {mean_a, std_a, rows}}``, or None
+    when there is none or it was not measured. One line naming the log and the field when
+    it is malformed."""
+    zero = (footer or {}).get("current_zero")
+    if zero is None or (isinstance(zero, dict) and "not_measured" in zero):
+        return None
+    where = f"{path}: footer: current_zero"
+    if not isinstance(zero, dict):
+        raise LogFormatError(f"{where}: expected a mapping of joints, got {zero!r}")
+    for joint, entry in zero.items():
+        if not isinstance(entry, dict):
+            raise LogFormatError(f"{where}: {joint}: expected mean_a, std_a and rows")
+        for key in ("mean_a", "std_a", "rows"):
+            value = entry.get(key)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise LogFormatError(f"{where}: {joint}: {key}: expected a number, got {value!r}")
+            if not math.isfinite(value) or (key != "mean_a" and value < 0):
+                raise LogFormatError(f"{where}: {joint}: {key}: {value!r} is not usable")
+        if entry["rows"] < 2:
+            raise LogFormatError(f"{where}: {joint}: rows: {entry['rows']!r} (at least 2)")
+    return zero
+
+
+def sensor_zeros(run, description) -> list[SensorZero | None]:
+    """Per joint of ``description`` the zero ``run``'s footer gives (None: none)."""
+    zero = getattr(run, "current_zero", None) or {}
+    out: list[SensorZero | None] = []
+    for joint in description.joints:
+        entry = zero.get(joint.name)
+        if entry is None or joint.drive is None:
+            out.append(None)
+            continue
+        step = TELEMETRY_CURRENT_A
+        if joint.current_sensor is not None:
+            cs = joint.current_sensor
+            step = max(step, 2.0 * cs.range / 2**cs.adc_bits)
+        std, rows = float(entry["std_a"]), int(entry["rows"])
+        var = std**2 / rows
+        if std < step / 2:  # too quiet to dither the resolution: its rounding stays
+            var += step**2 / 12.0
+        out.append(SensorZero(float(entry["mean_a"]), math.sqrt(var), rows))
+    return out
+
+
+@dataclass(frozen=True)
+class Subtracted:
+    """A zero taken off one log's joint: which ``source`` log, ``joint`` index, the zero."""
+
+    source: str
+    joint: int
+    zero: SensorZero
+
+
+@dataclass(frozen=True)
+class ZerosRead:
+    """What the logs' footers gave: ``taken`` the zeros subtracted (one per log and joint,
+    the segments of a log sharing it); ``lines`` per log what its zero was and what was
+    done; ``warnings`` per joint whose zero lies beyond ZERO_SIGNIFICANCE std errors."""
+
+    taken: tuple[Subtracted, ...] = ()
+    lines: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
+
+
+def subtract_zeros(runs, description, mode: str) -> tuple[list, ZerosRead]:
+    """(runs, read): each run's currents less the zeros its footer gives (``mode``
+    ``subtract``; ``ignore``: the runs as they are), and what was read and done."""
+    if mode not in MODES:
+        raise ValueError(f"current zero: mode {mode!r} is not one of {', '.join(MODES)}")
+    out, taken, lines, warnings, seen = [], [], [], [], set()
+    for run in runs:
+        zeros = sensor_zeros(run, description)
+        if run.torque or not any(zeros):
+            out.append(run)
+            continue
+        source = run.source or run.path
+        if source not in seen:
+            seen.add(source)
+            lines.append(_zero_line(source, description, zeros, mode))
+            warnings += zero_warnings(source, description, zeros)
+            if mode == "subtract":
+                taken += [Subtracted(source, j, z) for j, z in enumerate(zeros) if z is not None]
+        if mode == "subtract":
+            shift = np.array([0.0 if z is None else z.mean_a for z in zeros])
+            run = replace(run, current=np.asarray(run.current, dtype=float) - shift)
+        out.append(run)
+    return out, ZerosRead(tuple(taken), tuple(lines), tuple(warnings))
+
+
+def zero_warnings(source, description, zeros) -> list[str]:
+    """One line per joint whose zero (:func:`sensor_zeros`) lies beyond ZERO_SIGNIFICANCE
+    std errors from 0."""
+    return [
+        f"{source}: the {joint.name} current sensor reads {1e3 * z.mean_a:+.2f} +- "
+        f"{1e3 * z.std_error_a:.2f} mA at rest ({z.significance:.0f} std errors from 0): its "
+        "zero is off (zeroing the sensor keeps the std honest with --current-zero ignore "
+        "and spares the widening for the error of the zero read)"
+        for joint, z in zip(description.joints, zeros, strict=True)
+        if z is not None and z.significance > ZERO_SIGNIFICANCE
+    ]
+
+
+def _zero_line(source, description, zeros, mode) -> str:
+    pairs = zip(description.joints, zeros, strict=True)
+    parts = [f"{j.name} {1e3 * z.mean_a:+.2f} +- {1e3 * z.std_error_a:.2f} mA"
+             for j, z in pairs if z is not None]  # fmt: skip
+    done = ("subtracted, every std counting its error" if mode == "subtract"
+            else "left in (--current-zero ignore)")  # fmt: skip
+    return f"{source}: current sensors' zero read at rest: {', '.join(parts)}: {done}"
+
+
+def zero_sensitivity(fit_rows, description) -> dict[str, np.ndarray] | None:
+    """Per log (its source path) the (b', n) change of the estimates per ampere of each
+    driven joint's zero (0 for the others): WLS fitted on the rows, and how its estimate
+    moves with the effort shifted by the joint's friction-offset column times N eta Kt over
+    the log's rows (:meth:`~guardid.estimators.LeastSquares.effect_of`). WLS stands for
+    every method (each is LS-like or judged against it). None when it cannot be made here:
+    not the momentum form (no offset columns), or effort in current units or measured
+    torque."""
+    from guardid.estimators import WeightedLeastSquares
+    from guardid.identify.equation import drive_gain
+
+    rows = fit_rows.rows
+    O = rows.offset_columns
+    if O is None or fit_rows.effort_is_torque or fit_rows.options.in_current_units:
+        return None
+    A = fit_rows.A
+    wls = WeightedLeastSquares(**rows.error_model()).fit(A, fit_rows.y)
+    driven = [j for j, joint in enumerate(description.joints) if joint.drive is not None]
+    gain = drive_gain(description)
+    out: dict[str, np.ndarray] = {}
+    start = 0
+    for cond, run in zip(rows.runs, fit_rows.runs, strict=True):
+        m = int(np.count_nonzero(cond.mask))
+        G = out.setdefault(run.source or run.path, np.zeros((A.shape[2], len(gain))))
+        if m:
+            D = O[start : start + m][:, :, driven] * gain[driven]  # per ampere
+            G[:, driven] += wls.effect_of(A[start : start + m], D)
+        start += m
+    return out
+
+
+def tolerance_a(G: np.ndarray, std: np.ndarray) -> np.ndarray:
+    """Per joint the zero error [A] that moves some parameter by one of its ``std``, given
+    the estimates' change per ampere ``G`` (b', n) (inf: none moves; parameters without a
+    finite positive std do not count)."""
+    std = np.asarray(std, dtype=float)
+    ok = np.isfinite(std) & (std > 0)
+    worst = (np.abs(G[ok]) / std[ok, None]).max(axis=0, initial=0.0)
+    with np.errstate(divide="ignore"):
+        return np.where(worst > 0, 1.0 / worst, np.inf)
+
+
+def zero_covariance(sensitivity: dict[str, np.ndarray], taken) -> np.ndarray:
+    """(b', b') the estimates' covariance from the subtracted zeros' own errors (each log's
+    zero error its own, independent of the others')."""
+    b = next(iter(sensitivity.values())).shape[0]
+    C = np.zeros((b, b))
+    for s in taken:
+        g = sensitivity[s.source][:, s.joint] if s.source in sensitivity else np.zeros(b)
+        C += np.outer(g, g) * s.zero.std_error_a**2
+    return C
+
+
+@dataclass(frozen=True)
+class ZeroOutcome:
+    """What the zero stage found: ``mode``; ``sensitivity`` (b', n) the estimates' change
+    per ampere of each joint's zero, every log's together (None: not made here);
+    ``tolerance_a`` (n,) :func:`tolerance_a` of the verdict method's std (None: not made);
+    ``method`` that method; ``subtracted``: the zeros taken off; ``lines``: what the
+    report says of it (the zeros read and kept; how well a zero must be known)."""
+
+    mode: str
+    sensitivity: np.ndarray | None = None
+    tolerance_a: np.ndarray | None = None
+    method: str | None = None
+    subtracted: tuple[Subtracted, ...] = ()
+    lines: tuple[str, ...] = ()
+
+    def to_dict(self, description) -> dict:
+        """params.yaml's ``current_zero``."""
+        out: dict = {"mode": self.mode, "method": self.method}
+        names = [j.name for j in description.joints]
+        if self.tolerance_a is not None:
+            pairs = zip(names, self.tolerance_a, strict=True)
+            out["tolerance_a"] = {n: float(t) for n, t in pairs if np.isfinite(t)}
+        out["subtracted"] = [
+            {"log": s.source, "joint": names[s.joint], "mean_a": s.zero.mean_a,
+             "std_error_a": s.zero.std_error_a, "rows": s.zero.rows}
+            for s in self.subtracted
+        ]  # fmt: skip
+        return out
+
+
+def zero_stage(fit_rows, results, taken, description, mode, lines=()) -> ZeroOutcome:
+    """The stage after the fits: every result's std (and covariance) widened by the
+    subtracted zeros' own errors (``taken``, :func:`subtract_zeros`); the outcome, its
+    ``lines`` those given and one on how well the zeros must be known for the verdict
+    method's std to hold."""
+    from guardid.identify.untrusted import reference_method
+
+    sensitivity = zero_sensitivity(fit_rows, description)
+    taken, lines = tuple(taken), tuple(lines)
+    if sensitivity is None:
+        return ZeroOutcome(mode, subtracted=taken, lines=lines)
+    if taken:
+        C = zero_covariance(sensitivity, taken)
+        for r in results.values():
+            if r.std is None:
+                continue
+            r.std = np.sqrt(r.std**2 + np.clip(np.diag(C), 0.0, None))
+            r.cov = None if r.cov is None else r.cov + C
+            with np.errstate(divide="ignore", invalid="ignore"):
+                r.rel_std_pct = 100.0 * r.std / np.abs(r.theta)
+    G = sum(sensitivity.values())
+    ref = reference_method(results)
+    if ref is None or results[ref].std is None:
+        return ZeroOutcome(mode, G, subtracted=taken, lines=lines)
+    tol = tolerance_a(G, results[ref].std)
+    parts = [f"{j.name} {1e3 * t:.2g} mA" for j, t in zip(description.joints, tol, strict=True)
+             if j.drive is not None and np.isfinite(t)]  # fmt: skip
+    if parts:
+        lines += (
+            f"current sensors' zero: {ref}'s std hold while each sensor's zero is known to "
+            f"well within {', '.join(parts)} (a zero off by that much moves a parameter by "
+            "one std; capture --zero-rest reads it, docs/IDENTIFY.md)",
+        )
+    return ZeroOutcome(mode, G, tol, ref, taken, lines)

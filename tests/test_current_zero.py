@@ -1,0 +1,381 @@
+"""The current sensors' zero: a capture reads it at rest after the run, identify subtracts
+it when it is beyond its noise and widens the std for its error, and says how well the
+zero must be known for the std to hold.
+
+Truth: readings scripted by hand (which rows count, their mean); the simulator's own
+sensor offset (``sim://guard?wiring=current_offset:J=A``, added in the sensor, the motion
+untouched: the PID does not read the current), so that two captures of one seed differ
+only by the offset; the robot YAML's base parameters (the simulator runs the YAML).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+import shutil
+
+import numpy as np
+import pytest
+import yaml
+from badinput_tools import invoke
+
+from guardid.capture.run import _current_zero
+from guardid.capture.zero import STILL_TICKS, default_rest_s, measure_current_zero
+from guardid.errors import LinkError, LogFormatError
+from guardid.identify import IdentifyOptions, identify
+from guardid.identify.current_zero import (
+    ZERO_SIGNIFICANCE,
+    footer_zero,
+    sensor_zeros,
+    subtract_zeros,
+)
+from guardid.identify.runs import Run, load_run
+from guardid.robot import load_robot
+
+STEP_A = 4.0 / 1024  # guard.yaml's current ADC step: +-2 A over 10 bits [A]
+PAN_OFFSET, TILT_OFFSET = -2 * STEP_A, 5 * STEP_A  # on the ADC's levels: identify's snap holds
+
+
+@pytest.fixture(scope="module")
+def guard():
+    return load_robot("guard")
+
+
+# --- the capture's side: which rows count -------------------------------------------------
+
+
+class _Telemetry:
+    def __init__(self, counts, current_ma):
+        self.counts, self.current_ma = counts, current_ma
+
+
+class _Session:
+    """Scripted telemetry: ``rows`` (counts, current_ma) in order; ``fail_at``: the read
+    that raises LinkError."""
+
+    def __init__(self, rows, fail_at=None):
+        self.rows, self.read, self.modes, self.fail_at = list(rows), 0, [], fail_at
+        self.volts = []
+
+    def set_mode(self, mode):
+        self.modes.append(mode)
+
+    def send_voltage(self, volts):
+        self.volts.append(list(volts))
+
+    def next_telemetry(self):
+        if self.read == self.fail_at:
+            raise LinkError("port x: telemetry stopped")
+        t = _Telemetry(*self.rows[self.read])
+        self.read += 1
+        return t
+
+
+def test_the_zero_is_the_mean_of_the_rows_after_the_joints_stood_still(guard):
+    # 20 rows moving (the tilt falls, a braking current flows), then still rows: the first
+    # STILL_TICKS still rows are waited out, the next ones are the zero
+    moving = [((0, -k), (0, -150)) for k in range(20)]
+    still = [((0, -20), (3 + (k % 3), -7 + 2 * (k % 2))) for k in range(200)]
+    session = _Session(moving + still)
+    rest_s = 10 * guard.sample_period  # ten rows
+    zero = measure_current_zero(session, guard, rest_s)
+    assert session.modes == ["voltage"]  # 0 V before every read: the motors held at rest
+    assert session.volts == [[0.0, 0.0]] * session.read
+    # still[0] is where the joint arrived (its counts differ from the last move's row);
+    # still[k] then has k unchanged rows behind it: still[STILL_TICKS] is the first read
+    first = STILL_TICKS
+    counted = [still[k][1] for k in range(first, first + 10)]
+    pan = [c[0] * 1e-3 for c in counted]
+    tilt = [c[1] * 1e-3 for c in counted]
+    assert zero["pan"]["rows"] == zero["tilt"]["rows"] == 10
+    assert zero["pan"]["mean_a"] == pytest.approx(np.mean(pan), abs=1e-15)
+    assert zero["tilt"]["mean_a"] == pytest.approx(np.mean(tilt), abs=1e-15)
+    assert zero["tilt"]["std_a"] == pytest.approx(np.std(tilt, ddof=1), rel=1e-12)
+    assert session.read == 20 + first + 10  # read no further than needed
+
+
+def test_a_joint_that_moves_again_restarts_the_wait(guard):
+    # still for 15 rows, one move, then still: rows before the move count, the wait restarts
+    rows = [((0, 0), (1, 1))] * 16 + [((1, 0), (500, 500))] + [((1, 0), (2, 2))] * 40
+    zero = measure_current_zero(_Session(rows), guard, 12 * guard.sample_period)
+    # before the move: rows 10..15 (10..15 unchanged rows behind them): 6 rows of 1 mA;
+    # after it the 10th unchanged row onwards, 6 rows of 2 mA; the move's row (500 mA) never
+    assert zero["pan"]["rows"] == 12
+    assert zero["pan"]["mean_a"] == pytest.approx(1.5e-3, abs=1e-15)
+
+
+def test_joints_never_at_rest_are_said_not_measured(guard):
+    rows = [((k, 0), (0, 0)) for k in range(100000)]
+    session = _Session(rows)
+    zero = measure_current_zero(session, guard, 1.0)
+    assert set(zero) == {"not_measured"} and "not at rest" in zero["not_measured"]
+    assert session.read == math.ceil(1.0 / 0.015) + math.ceil(15.0 / 0.015)  # then gave up
+
+
+def test_a_lost_link_at_rest_keeps_the_run_and_says_so(guard):
+    session = _Session([((0, 0), (0, 0))] * 50, fail_at=30)
+    zero = _current_zero(session, guard, 1.0, 60.0)
+    assert "link error" in zero["not_measured"]
+    assert _current_zero(_Session([]), guard, 0.0, 60.0) is None  # not asked: no entry
+
+
+def test_the_default_rest_is_a_share_of_the_run_within_its_bounds():
+    assert default_rest_s(60.0) == 6.0
+    assert default_rest_s(10.0) == 2.0
+    assert default_rest_s(3600.0) == 120.0
+
+
+# --- the log's side: the footer, the zero's std error ----------------------------------------
+
+
+@pytest.mark.parametrize(
+    "entry, field",
+    [
+        ("not a mapping", "expected a mapping"),
+        ({"tilt": 3}, "tilt: expected mean_a"),
+        ({"tilt": {"mean_a": "x", "std_a": 0.1, "rows": 5}}, "tilt: mean_a"),
+        ({"tilt": {"mean_a": 0.0, "std_a": True, "rows": 5}}, "tilt: std_a"),
+        ({"tilt": {"mean_a": 0.0, "std_a": -0.1, "rows": 5}}, "tilt: std_a"),
+        ({"tilt": {"mean_a": float("nan"), "std_a": 0.1, "rows": 5}}, "tilt: mean_a"),
+        ({"tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 1}}, "tilt: rows"),
+        ({"tilt": {"mean_a": 0.0, "std_a": 0.1}}, "tilt: rows"),
+    ],
+)
+def test_a_malformed_footer_zero_is_one_line_naming_the_field(entry, field):
+    with pytest.raises(LogFormatError, match=f"^log.csv: footer: current_zero: {field}"):
+        footer_zero("log.csv", {"current_zero": entry})
+
+
+def test_no_zero_or_one_not_measured_reads_as_none():
+    assert footer_zero("x", None) is None
+    assert footer_zero("x", {"ended": "complete"}) is None
+    assert footer_zero("x", {"current_zero": {"not_measured": "why"}}) is None
+
+
+def _run(zero, n=200, source=None):
+    t = np.arange(n) * 0.015
+    current = np.column_stack([np.full(n, 0.1), np.full(n, -0.2)])
+    return Run("a.csv", "guard", np.arange(n), t, np.zeros((n, 2)), current, None,
+               current_zero=zero, source=source)  # fmt: skip
+
+
+def test_the_zeros_std_error_worked_out_by_hand(guard):
+    noisy = {"mean_a": 0.004, "std_a": 0.008, "rows": 64}  # dithers the 3.9 mA step
+    quiet = {"mean_a": 0.0, "std_a": 0.0, "rows": 400}  # every reading alike: rounding stays
+    pan, tilt = sensor_zeros(_run({"pan": noisy, "tilt": quiet}), guard)
+    assert pan.std_error_a == pytest.approx(0.008 / 8, rel=1e-12)
+    assert pan.significance == pytest.approx(4.0, rel=1e-12)
+    assert tilt.std_error_a == pytest.approx(STEP_A / math.sqrt(12), rel=1e-12)
+    assert sensor_zeros(_run({"tilt": quiet}), guard)[0] is None  # the pan not read
+
+
+def test_every_read_zero_is_subtracted_once_per_log_and_one_off_is_a_warning(guard):
+    big = {"mean_a": 0.02, "std_a": 0.008, "rows": 100}  # 25 std errors from 0
+    small = {"mean_a": 0.003, "std_a": 0.008, "rows": 100}  # 3.75: within its noise
+    zero = {"pan": big, "tilt": small}
+    segments = [_run(zero, source="a.csv"), _run(zero, source="a.csv")]
+    runs, read = subtract_zeros(segments, guard, "subtract")
+    for r in runs:
+        np.testing.assert_allclose(r.current[:, 0], 0.1 - 0.02, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(r.current[:, 1], -0.2 - 0.003, rtol=0, atol=1e-15)
+    assert [(t.source, t.joint) for t in read.taken] == [("a.csv", 0), ("a.csv", 1)]  # once
+    line = ("a.csv: current sensors' zero read at rest: pan +20.00 +- 0.80 mA, tilt +3.00 "
+            "+- 0.80 mA: subtracted, every std counting its error")  # fmt: skip
+    assert read.lines == (line,)
+    assert len(read.warnings) == 1 and "the pan current sensor reads +20.00" in read.warnings[0]
+    assert ZERO_SIGNIFICANCE == 4.0  # 3.75 std errors: no warning, 25: one
+
+    runs, read = subtract_zeros(segments, guard, "ignore")
+    assert not read.taken and runs[0].current is segments[0].current
+    assert read.lines[0].endswith("left in (--current-zero ignore)")
+    assert len(read.warnings) == 1  # an off sensor is said whatever is done with it
+    torque = Run("t.csv", "guard", None, np.arange(5.0), np.zeros((5, 2)), np.ones((5, 2)),
+                 None, torque=True, current_zero=zero)  # fmt: skip
+    assert subtract_zeros([torque], guard, "subtract")[0][0] is torque
+    with pytest.raises(ValueError, match="auto"):
+        subtract_zeros(segments, guard, "auto")
+
+
+# --- end to end on the simulator's own sensor offset -------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def offset_captures(tmp_path_factory, excitation):
+    """One seed captured four times (60 s): healthy, the pan's sensor PAN_OFFSET off, the
+    tilt's TILT_OFFSET off, and both (``both``); ``--zero-rest`` its default."""
+    d = tmp_path_factory.mktemp("current_zero")
+    traj = excitation("--no-optimise")
+    out = {}
+    for name, wiring in (("healthy", ""), ("pan", f"current_offset:pan={PAN_OFFSET!r}"),
+                         ("tilt", f"current_offset:tilt={TILT_OFFSET!r}"),
+                         ("both", f"current_offset:pan={PAN_OFFSET!r},"
+                                  f"current_offset:tilt={TILT_OFFSET!r}")):  # fmt: skip
+        port = "sim://guard?seed=4&phase=1" + (f"&wiring={wiring}" if wiring else "")
+        log = d / f"{name}.csv"
+        res = invoke("capture", "--port", port, "--trajectory", traj, "--duration", 60,
+                     "--quiet", "-o", log)  # fmt: skip
+        assert res.exit_code == 0, res.output
+        out[name] = log
+    return out
+
+
+def _fit(log, mode, guard):
+    return identify([load_run(log)], guard, IdentifyOptions(methods=("wls",), current_zero=mode))
+
+
+def test_the_capture_reads_the_simulated_sensors_zero(offset_captures):
+    footer = _footer(offset_captures["both"])["current_zero"]
+    assert footer["pan"]["rows"] == footer["tilt"]["rows"] == math.ceil(6.0 / 0.015)  # 10 %
+    for joint, truth in (("pan", PAN_OFFSET), ("tilt", TILT_OFFSET)):
+        e = footer[joint]
+        err = e["std_a"] / math.sqrt(e["rows"])
+        assert abs(e["mean_a"] - truth) < 4 * err + 1e-3  # the telemetry's whole mA
+    healthy = _footer(offset_captures["healthy"])["current_zero"]
+    for e in healthy.values():
+        assert abs(e["mean_a"]) < 4 * e["std_a"] / math.sqrt(e["rows"])
+
+
+def _footer(log) -> dict:
+    """The log's footer, parsed here: the commented lines from '# footer:' on."""
+    lines = log.read_text().splitlines()
+    start = lines.index("# footer:")
+    return yaml.safe_load("\n".join(ln[2:] for ln in lines[start:]))["footer"]
+
+
+def _with_zero(log, zeros):
+    """``log``'s run with its footer's zero replaced by ``zeros`` {joint: A}, known to 1e-8 A
+    (noisy readings, 1e12 of them)."""
+    exact = {j: {"mean_a": z, "std_a": 0.01, "rows": 10**12} for j, z in zeros.items()}
+    return dataclasses.replace(load_run(log), current_zero=exact)
+
+
+def test_subtracting_the_simulated_offset_gives_the_healthy_estimate(offset_captures, guard):
+    """The simulator adds the offset in its sensor; the motion is the same (the PID reads no
+    current). Subtracting that offset as the footer's zero gives the healthy log's
+    estimate: the zero enters the rows as the constant it is, nothing else."""
+    healthy = _fit(offset_captures["healthy"], "ignore", guard).results["wls"]
+    for name, zeros in (("pan", {"pan": PAN_OFFSET}), ("tilt", {"tilt": TILT_OFFSET}),
+                        ("both", {"pan": PAN_OFFSET, "tilt": TILT_OFFSET})):  # fmt: skip
+        run = _with_zero(offset_captures[name], zeros)
+        taken = identify([run], guard, IdentifyOptions(methods=("wls",), current_zero="subtract"))
+        np.testing.assert_allclose(taken.results["wls"].theta, healthy.theta, rtol=0,
+                                   atol=1e-6 * healthy.std.min())  # fmt: skip
+        left = _fit(offset_captures[name], "ignore", guard).results["wls"].theta
+        assert np.max(np.abs(left - healthy.theta) / healthy.std) > 10  # it mattered
+
+
+def test_the_sensitivity_is_how_the_estimate_moves_with_a_small_zero(offset_captures, guard):
+    """The reported change per ampere against the whole pipeline run again with 0.1 mA
+    subtracted from one joint (small: WLS's weights, which a zero moves too, stay put; a
+    2-step offset on this log moves the pan's weight by 4 times)."""
+    healthy = _fit(offset_captures["healthy"], "ignore", guard)
+    G, w = healthy.current_zero.sensitivity, healthy.results["wls"]
+    for j, name in enumerate(("pan", "tilt")):
+        run = _with_zero(offset_captures["healthy"], {name: 1e-4})
+        moved = identify([run], guard, IdentifyOptions(methods=("wls",), current_zero="subtract"))
+        per_amp = (moved.results["wls"].theta - w.theta) / -1e-4
+        assert np.max(np.abs(G[:, j]) / w.std) > 1000  # a parameter moves 1 std per mA or more
+        np.testing.assert_allclose(per_amp / w.std, G[:, j] / w.std, rtol=0.05, atol=20)
+
+
+def test_identify_subtracts_the_read_zero_and_the_truth_is_within_3_std(offset_captures):
+    log = offset_captures["both"]
+    res = invoke("identify", log, "--method", "wls", "-o", log.with_suffix(".yaml"))
+    assert res.exit_code == 0, res.output
+    assert "current sensors' zero read at rest: pan -7." in res.output
+    assert "subtracted, every std counting its error" in res.output
+    assert "warning: " in res.output and "the tilt current sensor reads +19." in res.output
+    params = yaml.safe_load(log.with_suffix(".yaml").read_text())
+    truth = np.array([p["yaml_value"] for p in params["base_parameters"]])
+    wls = params["methods"]["wls"]
+    z = (np.array(wls["values"]) - truth) / np.array(wls["std"])
+    assert np.all(np.abs(z) < 3), z
+    taken = params["current_zero"]["subtracted"]
+    assert [t["joint"] for t in taken] == ["pan", "tilt"]
+    # left in, the same log is confidently wrong: the tilt's offset becomes gravity (MX2R)
+    res = invoke("identify", log, "--method", "wls", "--current-zero", "ignore",
+                 "-o", log.with_suffix(".ignored.yaml"))  # fmt: skip
+    assert res.exit_code == 0, res.output
+    ignored = yaml.safe_load(log.with_suffix(".ignored.yaml").read_text())["methods"]["wls"]
+    names = [p["name"] for p in params["base_parameters"]]
+    k = names.index("MX2R")
+    assert abs(ignored["values"][k] - truth[k]) > 10 * ignored["std"][k]
+
+
+def test_the_tolerance_is_the_zero_error_that_moves_a_parameter_by_one_std(offset_captures, guard):
+    healthy = _fit(offset_captures["healthy"], "subtract", guard)
+    assert not any("current sensor reads" in w for w in healthy.warnings)  # within noise
+    assert any("tilt +0." in n or "tilt -0." in n for n in healthy.notes)
+    tol = healthy.current_zero.tolerance_a
+    G, std = healthy.current_zero.sensitivity, healthy.results["wls"].std
+    for j in range(2):
+        assert np.max(np.abs(G[:, j]) * tol[j] / std) == pytest.approx(1.0, rel=1e-9)
+        assert 1e-5 < tol[j] < 1e-2  # a fraction of the 3.9 mA step, on a minute's log
+
+
+def test_subtracting_widens_the_std_by_the_zeros_own_error(offset_captures, guard):
+    """The healthy log's zero is noise, taken off all the same: each std is the one
+    of the same zero known exactly, plus the change per ampere times the zero's std error
+    (worked out here from the footer: std / sqrt(rows)), in quadrature."""
+    log = offset_captures["healthy"]
+    zeros = sensor_zeros(load_run(log), guard)
+    read = {"pan": zeros[0].mean_a, "tilt": zeros[1].mean_a}
+    exact = identify([_with_zero(log, read)], guard,
+                     IdentifyOptions(methods=("wls",), current_zero="subtract"))  # fmt: skip
+    taken = _fit(log, "subtract", guard)
+    footer = _footer(log)["current_zero"]
+    err = [footer[j]["std_a"] / math.sqrt(footer[j]["rows"]) for j in ("pan", "tilt")]
+    G = exact.current_zero.sensitivity
+    extra = (G[:, 0] * err[0]) ** 2 + (G[:, 1] * err[1]) ** 2
+    np.testing.assert_allclose(taken.results["wls"].theta, exact.results["wls"].theta,
+                               rtol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(taken.results["wls"].std ** 2,
+                               exact.results["wls"].std ** 2 + extra, rtol=1e-6)  # fmt: skip
+    assert np.max(extra / exact.results["wls"].std ** 2) > 0.1  # a widening worth testing
+    assert len(taken.current_zero.subtracted) == 2
+
+
+def test_a_log_without_the_footers_zero_is_identified_as_before(offset_captures, tmp_path, guard):
+    """The footer's zero removed by hand (a log of an older capture): the sensitivity is
+    still said; nothing is subtracted."""
+    log = tmp_path / "old.csv"
+    shutil.copy(offset_captures["healthy"], log)
+    lines = log.read_text().splitlines(keepends=True)
+    start = next(i for i, ln in enumerate(lines) if ln.startswith("#   current_zero:"))
+    end = start + 1
+    while end < len(lines) and lines[end].startswith("#     "):
+        end += 1
+    log.write_text("".join(lines[:start] + lines[end:]))
+    run = load_run(log)
+    assert run.current_zero is None
+    res = invoke("identify", log, "--method", "wls")
+    assert res.exit_code == 0, res.output
+    assert "read at rest" not in res.output
+    assert "std hold while each sensor's zero is known to well within pan 0." in res.output
+    ignored = _fit(offset_captures["healthy"], "ignore", guard)
+    assert np.array_equal(_fit(log, "subtract", guard).results["wls"].theta,
+                          ignored.results["wls"].theta)  # fmt: skip
+
+
+def test_validate_and_cv_subtract_the_read_zero_too(offset_captures, tmp_path):
+    """A model fitted on the healthy log scores the offset log as well as the healthy one
+    once the offset log's read zero is taken off (validate), and leave-one-run-out over
+    the two logs scores each held-out run near the fit's own error, not the offset's."""
+    params = tmp_path / "healthy.yaml"
+    res = invoke("identify", offset_captures["healthy"], "--method", "wls", "-o", params)
+    assert res.exit_code == 0, res.output
+    scores = {}
+    for name in ("healthy", "both"):
+        res = invoke("validate", offset_captures[name], "--params", params)
+        assert res.exit_code == 0, res.output
+        scores[name] = float(re.search(r":WLS\s+([\d.]+)%", res.output).group(1))
+    assert "the tilt current sensor reads +19." in res.output  # the offset log's warning
+    assert scores["both"] < 1.2 * scores["healthy"]
+    cv = {}
+    for mode in ("subtract", "ignore"):
+        res = invoke("identify", "--cv", offset_captures["both"], offset_captures["healthy"],
+                     "--method", "wls", "--current-zero", mode)  # fmt: skip
+        assert res.exit_code == 0, res.output
+        cv[mode] = float(re.search(r"^mean\s+([\d.]+)%", res.output, re.M).group(1))
+    assert cv["subtract"] < 0.5 * cv["ignore"]
