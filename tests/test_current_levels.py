@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from guardid.conditioning.units import current_on_adc_levels
+from guardid.identify.pipeline import IdentifyOptions
 from guardid.identify.prepare import prepared_runs
 from guardid.identify.runs import load_run
 from guardid.robot import load_robot
@@ -146,7 +147,9 @@ def test_cross_validation_scores_the_held_out_run_on_the_levels(gap_guard_captur
 
     monkeypatch.setattr(crossval, "_run_tuple", spy)
     runs = [load_run(gap_guard_captures[s]) for s in (1, 2)]
-    crossval.fold_scores(runs, load_robot("guard"), IdentifyOptions(methods=("ls",)))
+    # the read zero left in: what is scored is then the levels themselves
+    options = IdentifyOptions(methods=("ls",), current_zero="ignore")
+    crossval.fold_scores(runs, load_robot("guard"), options)
     assert len(seen) >= 2
     for current in seen:
         codes = current / STEP_A
@@ -160,7 +163,8 @@ def test_a_guardid_log_reaches_the_fit_on_the_adc_levels(gap_guard_captures):
     description = load_robot("guard")
     run = load_run(gap_guard_captures[1])
     logged = np.array(run.current)
-    (prepared,), _, _ = prepared_runs([run], description)
+    # the footer's zero left in: the levels themselves reach the fit
+    (prepared,), _, _ = prepared_runs([run], description, IdentifyOptions(current_zero="ignore"))
     levels = prepared.current
     assert np.array_equal(run.current, logged)  # the caller's run is left as it was
     assert np.all(np.abs(levels - logged) <= 0.5e-3 + 1e-12)
@@ -177,7 +181,7 @@ def test_a_log_in_other_units_keeps_its_current(gap_guard_captures):
     run.current = np.array(run.current)
     run.current[:, 1] += 0.0003
     kept = run.current[:, 1].copy()
-    (prepared,), _, _ = prepared_runs([run], description)
+    (prepared,), _, _ = prepared_runs([run], description, IdentifyOptions(current_zero="ignore"))
     assert np.array_equal(prepared.current[:, 1], kept)
     codes = prepared.current[:, 0] / STEP_A
     assert np.array_equal(codes, np.round(codes))

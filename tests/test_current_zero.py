@@ -30,6 +30,7 @@ from guardid.identify.current_zero import (
     sensor_zeros,
     subtract_zeros,
 )
+from guardid.identify.prepare import current_on_adc_levels
 from guardid.identify.runs import Run, load_run
 from guardid.robot import load_robot
 
@@ -140,6 +141,15 @@ def test_the_default_rest_is_a_share_of_the_run_within_its_bounds():
         ({"tilt": {"mean_a": float("nan"), "std_a": 0.1, "rows": 5}}, "tilt: mean_a"),
         ({"tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 1}}, "tilt: rows"),
         ({"tilt": {"mean_a": 0.0, "std_a": 0.1}}, "tilt: rows"),
+        (
+            {"tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 3, "readings_ma": {0: 2}}},
+            "tilt: readings",
+        ),
+        (
+            {"tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 3, "readings_ma": {0.5: 3}}},
+            "tilt: readings",
+        ),
+        ({"tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 3, "readings_ma": [3]}}, "tilt: readings"),
     ],
 )
 def test_a_malformed_footer_zero_is_one_line_naming_the_field(entry, field):
@@ -161,18 +171,39 @@ def _run(zero, n=200, source=None):
 
 
 def test_the_zeros_std_error_worked_out_by_hand(guard):
-    noisy = {"mean_a": 0.004, "std_a": 0.008, "rows": 64}  # dithers the 3.9 mA step
-    quiet = {"mean_a": 0.0, "std_a": 0.0, "rows": 400}  # every reading alike: rounding stays
+    noisy = {"mean_a": 0.004, "std_a": 0.008, "rows": 64, "on_levels": True}  # dithered
+    quiet = {"mean_a": 0.0, "std_a": 0.0, "rows": 400, "on_levels": True}  # all alike
     pan, tilt = sensor_zeros(_run({"pan": noisy, "tilt": quiet}), guard)
     assert pan.std_error_a == pytest.approx(0.008 / 8, rel=1e-12)
     assert pan.significance == pytest.approx(4.0, rel=1e-12)
     assert tilt.std_error_a == pytest.approx(STEP_A / math.sqrt(12), rel=1e-12)
+    # readings not put back on the ADC's levels keep the telemetry's 1 mA rounding
+    raw = {**noisy, "on_levels": False}
+    assert sensor_zeros(_run({"pan": raw}), guard)[0].std_error_a == pytest.approx(
+        math.sqrt(0.001**2 + 1e-6 / 12), rel=1e-12
+    )
     assert sensor_zeros(_run({"tilt": quiet}), guard)[0] is None  # the pan not read
 
 
+def test_the_zeros_readings_go_on_the_adcs_levels_as_the_logs_currents_do(guard):
+    """The capture's whole-mA readings of the rest, by hand: 4 mA is the level 3.90625 mA
+    (one step of 4 / 1024 A), -8 mA two steps down; the footer's own mean_a is not used."""
+    zero = {"tilt": {"mean_a": 0.5, "std_a": 9.0, "rows": 4, "readings_ma": {-8: 1, 4: 3}}}
+    logged = np.round((np.arange(200) - 100) * STEP_A * 1e3) * 1e-3  # levels in whole mA
+    run = dataclasses.replace(_run(zero), current=np.column_stack([logged, logged]))
+    entry = current_on_adc_levels(run, guard).current_zero["tilt"]
+    levels = np.array([-2, 1, 1, 1]) * STEP_A
+    assert entry["on_levels"] is True
+    assert entry["mean_a"] == pytest.approx(levels.mean(), abs=1e-15)
+    assert entry["std_a"] == pytest.approx(levels.std(ddof=1), rel=1e-12)
+    assert footer_zero("x", {"current_zero": {"tilt": {**zero["tilt"], "on_levels": True}}}) == {
+        "tilt": zero["tilt"]
+    }  # a file cannot say it is on levels
+
+
 def test_every_read_zero_is_subtracted_once_per_log_and_one_off_is_a_warning(guard):
-    big = {"mean_a": 0.02, "std_a": 0.008, "rows": 100}  # 25 std errors from 0
-    small = {"mean_a": 0.003, "std_a": 0.008, "rows": 100}  # 3.75: within its noise
+    big = {"mean_a": 0.02, "std_a": 0.008, "rows": 100, "on_levels": True}  # 25 std errors
+    small = {"mean_a": 0.003, "std_a": 0.008, "rows": 100, "on_levels": True}  # 3.75
     zero = {"pan": big, "tilt": small}
     segments = [_run(zero, source="a.csv"), _run(zero, source="a.csv")]
     runs, read = subtract_zeros(segments, guard, "subtract")
@@ -245,8 +276,9 @@ def _footer(log) -> dict:
 
 def _with_zero(log, zeros):
     """``log``'s run with its footer's zero replaced by ``zeros`` {joint: A}, known to 1e-8 A
-    (noisy readings, 1e12 of them)."""
-    exact = {j: {"mean_a": z, "std_a": 0.01, "rows": 10**12} for j, z in zeros.items()}
+    (noisy readings on the ADC's levels, 1e12 of them)."""
+    exact = {j: {"mean_a": z, "std_a": 0.01, "rows": 10**12, "on_levels": True}
+             for j, z in zeros.items()}  # fmt: skip
     return dataclasses.replace(load_run(log), current_zero=exact)
 
 
@@ -317,15 +349,15 @@ def test_the_tolerance_is_the_zero_error_that_moves_a_parameter_by_one_std(offse
 def test_subtracting_widens_the_std_by_the_zeros_own_error(offset_captures, guard):
     """The healthy log's zero is noise, taken off all the same: each std is the one
     of the same zero known exactly, plus the change per ampere times the zero's std error
-    (worked out here from the footer: std / sqrt(rows)), in quadrature."""
+    (worked out here from the readings put on the ADC's levels: std / sqrt(rows)), in
+    quadrature."""
     log = offset_captures["healthy"]
-    zeros = sensor_zeros(load_run(log), guard)
-    read = {"pan": zeros[0].mean_a, "tilt": zeros[1].mean_a}
+    prepared = current_on_adc_levels(load_run(log), guard).current_zero  # on the levels
+    read = {j: prepared[j]["mean_a"] for j in ("pan", "tilt")}
     exact = identify([_with_zero(log, read)], guard,
                      IdentifyOptions(methods=("wls",), current_zero="subtract"))  # fmt: skip
     taken = _fit(log, "subtract", guard)
-    footer = _footer(log)["current_zero"]
-    err = [footer[j]["std_a"] / math.sqrt(footer[j]["rows"]) for j in ("pan", "tilt")]
+    err = [prepared[j]["std_a"] / math.sqrt(prepared[j]["rows"]) for j in ("pan", "tilt")]
     G = exact.current_zero.sensitivity
     extra = (G[:, 0] * err[0]) ** 2 + (G[:, 1] * err[1]) ** 2
     np.testing.assert_allclose(taken.results["wls"].theta, exact.results["wls"].theta,

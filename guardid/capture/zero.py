@@ -15,6 +15,7 @@ not part of the trajectory.
 from __future__ import annotations
 
 import math
+from collections import Counter
 
 STILL_TICKS = 10  #: counts unchanged this many ticks: the joints are at rest
 SETTLE_LIMIT_S = 15.0  #: give up when the joints are not at rest within this long [s]
@@ -37,10 +38,11 @@ def measure_current_zero(session, description, rest_s: float) -> dict:
     sensors for ``rest_s`` seconds (the telemetry must be streaming; the caller puts the
     robot idle after).
 
-    Returns the footer's ``current_zero``: per driven joint ``{mean_a, std_a, rows}`` (the
-    readings' mean and sample std [A], the rows read), or ``{not_measured: reason}`` when
-    the joints did not come to rest within SETTLE_LIMIT_S. Link errors propagate (the
-    caller puts the robot idle)."""
+    Returns the footer's ``current_zero``: per driven joint ``{mean_a, std_a, rows,
+    readings_ma}`` (the readings' mean and sample std [A], the rows read, and how many
+    read each whole mA: identify puts them on the ADC's levels as it does the log's), or
+    ``{not_measured: reason}`` when the joints did not come to rest within SETTLE_LIMIT_S.
+    Link errors propagate (the caller puts the robot idle)."""
     period = description.sample_period
     need = max(2, math.ceil(rest_s / period))
     limit = need + math.ceil(SETTLE_LIMIT_S / period)
@@ -69,5 +71,7 @@ def measure_current_zero(session, description, rest_s: float) -> dict:
         values = [r[j] * 1e-3 for r in readings]
         mean = sum(values) / len(values)
         var = sum((v - mean) ** 2 for v in values) / (len(values) - 1)
-        zero[joint.name] = {"mean_a": mean, "std_a": math.sqrt(var), "rows": len(values)}
+        counts = Counter(int(r[j]) for r in readings)  # the telemetry's whole mA
+        zero[joint.name] = {"mean_a": mean, "std_a": math.sqrt(var), "rows": len(values),
+                            "readings_ma": dict(sorted(counts.items()))}  # fmt: skip
     return zero

@@ -118,6 +118,27 @@ def current_on_adc_levels(current_a, full_range_a: float, adc_bits: int, unit_a:
     return out
 
 
+def readings_on_levels(values_a, full_range_a: float, adc_bits: int, unit_a: float):
+    """Readings [A] (N,) of a joint that :func:`current_on_adc_levels` put on the ADC's
+    levels (its decision made on the joint's logged current) mapped the same way, value by
+    value: the level itself (step > unit), the mean of the levels that round to the value
+    (unit / 2 < step <= unit); None when a value is no level's rounding (or the step
+    neither case)."""
+    unit = float(unit_a)
+    step = 2.0 * float(full_range_a) / (1 << int(adc_bits))
+    values = np.asarray(values_a, dtype=float)
+    if step > unit:
+        levels = np.round(values / step) * step
+        return levels if np.all(np.abs(values - levels) <= 0.5 * unit * (1.0 + 1e-6)) else None
+    if not step > 0.5 * unit:
+        return None
+    whole = np.round(values / unit)
+    if not np.all(np.abs(values / unit - whole) <= 1e-6):
+        return None
+    mean, count = _preimage(whole, step, unit, int(adc_bits))
+    return mean if np.all(count >= 1) else None
+
+
 CHANCE = 1e-11
 """Chance [-] the level recovery may take values that are not rounded ADC levels for
 levels: the fewest distinct levels (step > unit: values spread over the range) and the

@@ -43,8 +43,7 @@ TELEMETRY_CURRENT_A = 1e-3  #: the telemetry's current unit [A]: a reading's res
 @dataclass(frozen=True)
 class SensorZero:
     """One joint's zero as a capture read it: ``mean_a`` [A], ``std_error_a`` [A] (the
-    mean's std: the readings' std over sqrt(rows), and at least the resolution's
-    rounding when the readings are too quiet to dither it), ``rows`` read."""
+    mean's std, :func:`sensor_zeros`), ``rows`` read."""
 
     mean_a: float
     std_error_a: float
@@ -57,8 +56,8 @@ class SensorZero:
 
 
 def footer_zero(path, footer: dict | None) -> dict | None:
-    """The footer's ``current_zero`` checked: ``{joint: {mean_a, std_a, rows}}``, or None
-    when there is none or it was not measured. One line naming the log and the field when
+    """The footer's ``current_zero`` checked: ``{joint: {mean_a, std_a, rows[, readings_ma]}}``,
+    or None when there is none or it was not measured. One line naming the log and the field when
     it is malformed."""
     zero = (footer or {}).get("current_zero")
     if zero is None or (isinstance(zero, dict) and "not_measured" in zero):
@@ -77,11 +76,49 @@ def footer_zero(path, footer: dict | None) -> dict | None:
                 raise LogFormatError(f"{where}: {joint}: {key}: {value!r} is not usable")
         if entry["rows"] < 2:
             raise LogFormatError(f"{where}: {joint}: rows: {entry['rows']!r} (at least 2)")
-    return zero
+        hist = entry.get("readings_ma")
+        if hist is not None and not (
+            isinstance(hist, dict)
+            and all(_whole(v) and _whole(c) and c >= 1 for v, c in hist.items())
+            and sum(hist.values()) == entry["rows"]
+        ):
+            raise LogFormatError(f"{where}: {joint}: readings_ma: expected whole mA: counts "
+                                 f"summing to rows ({entry['rows']!r})")  # fmt: skip
+    # what identify works out itself (zero_on_levels) is not taken from the file
+    return {j: {k: v for k, v in e.items() if k != "on_levels"} for j, e in zero.items()}
+
+
+def _whole(x) -> bool:
+    return isinstance(x, int) and not isinstance(x, bool)
+
+
+def zero_on_levels(entry: dict, sensor, unit_a: float) -> dict:
+    """A footer zero's entry with its readings (``readings_ma``: {mA: count}) put on the
+    ADC's levels as the joint's logged current was
+    (:func:`~guardid.conditioning.units.readings_on_levels`): mean and std of the levels,
+    ``on_levels`` True. The entry as it is when it has no readings or one is no level's."""
+    from guardid.conditioning.units import readings_on_levels
+
+    hist = entry.get("readings_ma")
+    if not hist:
+        return entry
+    values = np.array([float(v) * 1e-3 for v in hist])
+    counts = np.array([int(c) for c in hist.values()], dtype=float)
+    levels = readings_on_levels(values, sensor.range, sensor.adc_bits, unit_a)
+    if levels is None:
+        return entry
+    n = counts.sum()
+    mean = float(np.sum(counts * levels) / n)
+    std = float(np.sqrt(np.sum(counts * (levels - mean) ** 2) / (n - 1)))
+    return {**entry, "mean_a": mean, "std_a": std, "on_levels": True}
 
 
 def sensor_zeros(run, description) -> list[SensorZero | None]:
-    """Per joint of ``description`` the zero ``run``'s footer gives (None: none)."""
+    """Per joint of ``description`` the zero ``run``'s footer gives (None: none). Its std
+    error: the readings' std over sqrt(rows); plus the ADC step's rounding (step^2 / 12)
+    when the readings are too quiet to dither it (std below half a step), and the
+    telemetry unit's (unit^2 / 12) when they were not put back on the ADC's levels
+    (:func:`zero_on_levels`)."""
     zero = getattr(run, "current_zero", None) or {}
     out: list[SensorZero | None] = []
     for joint in description.joints:
@@ -97,6 +134,10 @@ def sensor_zeros(run, description) -> list[SensorZero | None]:
         var = std**2 / rows
         if std < step / 2:  # too quiet to dither the resolution: its rounding stays
             var += step**2 / 12.0
+        if not entry.get("on_levels"):
+            # the telemetry's rounding to whole units, not undone: it follows the level, so
+            # the rest's few levels and the run's many carry different mean errors
+            var += TELEMETRY_CURRENT_A**2 / 12.0
         out.append(SensorZero(float(entry["mean_a"]), math.sqrt(var), rows))
     return out
 

@@ -50,31 +50,39 @@ def current_on_adc_levels(run, description, in_place: bool = False):
     joint whose values are not is left as it is. A copy with a new current array, or, with
     ``in_place``, ``run`` itself changed (for a caller that owns the run's arrays, so that
     every later stage, the tracker's replay included, reads the same currents). Levels
-    come back as they are: a second call changes nothing and copies nothing."""
+    come back as they are: a second call changes nothing and copies nothing. The footer's
+    current sensors' zero of a joint put on its levels is read off them the same way
+    (:func:`~guardid.identify.current_zero.zero_on_levels`)."""
     from guardid.conditioning.units import current_on_adc_levels as on_levels
+    from guardid.identify.current_zero import zero_on_levels
     from guardid.protocol.codec import SPEC
 
     joints = getattr(description, "joints", None)
     if run.torque or joints is None or run.current is None:
         return run
     (unit,) = [f.scale for f in SPEC.by_name("TELEMETRY").fields if f.name == "current"]
-    current = run.current
+    current, zero = run.current, getattr(run, "current_zero", None)
     for j, joint in enumerate(joints):
         sensor = joint.current_sensor
         if sensor is None or j >= current.shape[1]:
             continue
         levels = on_levels(current[:, j], sensor.range, sensor.adc_bits, unit)
-        if levels is None or np.array_equal(levels, current[:, j]):
+        if levels is None:
+            continue
+        if zero and joint.name in zero and not zero[joint.name].get("on_levels"):
+            # the zero read at rest the same way (guardid.identify.current_zero)
+            zero = {**zero, joint.name: zero_on_levels(zero[joint.name], sensor, unit)}
+        if np.array_equal(levels, current[:, j]):
             continue
         if current is run.current and not (in_place and current.flags.writeable):
             current = np.array(current)
         current[:, j] = levels
-    if current is run.current:
+    if current is run.current and zero is getattr(run, "current_zero", None):
         return run
     if in_place:
-        run.current = current
+        run.current, run.current_zero = current, zero
         return run
-    return replace(run, current=current)
+    return replace(run, current=current, current_zero=zero)
 
 
 def _in_joint_order(run, description):
