@@ -1,6 +1,6 @@
 """The current sensors' zero: a capture reads it at rest after the run, identify subtracts
-it when it is beyond its noise and widens the std for its error, and says how well the
-zero must be known for the std to hold.
+it and widens the std for its error, and says how well the zero must be known for the std
+to hold.
 
 Truth: readings scripted by hand (which rows count, their mean); the simulator's own
 sensor offset (``sim://guard?wiring=current_offset:J=A``, added in the sensor, the motion
@@ -141,6 +141,8 @@ def test_the_default_rest_is_a_share_of_the_run_within_its_bounds():
         ({"tilt": {"mean_a": float("nan"), "std_a": 0.1, "rows": 5}}, "tilt: mean_a"),
         ({"tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 1}}, "tilt: rows"),
         ({"tilt": {"mean_a": 0.0, "std_a": 0.1}}, "tilt: rows"),
+        ({"tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 2.5}}, "tilt: rows"),
+        ({"Tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 3}}, "Tilt: not a joint of the log"),
         (
             {"tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 3, "readings_ma": {0: 2}}},
             "tilt: readings",
@@ -154,13 +156,13 @@ def test_the_default_rest_is_a_share_of_the_run_within_its_bounds():
 )
 def test_a_malformed_footer_zero_is_one_line_naming_the_field(entry, field):
     with pytest.raises(LogFormatError, match=f"^log.csv: footer: current_zero: {field}"):
-        footer_zero("log.csv", {"current_zero": entry})
+        footer_zero("log.csv", {"current_zero": entry}, ("pan", "tilt"))
 
 
-def test_no_zero_or_one_not_measured_reads_as_none():
+def test_no_zero_reads_as_none_and_one_not_measured_says_why():
     assert footer_zero("x", None) is None
     assert footer_zero("x", {"ended": "complete"}) is None
-    assert footer_zero("x", {"current_zero": {"not_measured": "why"}}) is None
+    assert footer_zero("x", {"current_zero": {"not_measured": "why"}}) == {"not_measured": "why"}
 
 
 def _run(zero, n=200, source=None):
@@ -176,7 +178,11 @@ def test_the_zeros_std_error_worked_out_by_hand(guard):
     pan, tilt = sensor_zeros(_run({"pan": noisy, "tilt": quiet}), guard)
     assert pan.std_error_a == pytest.approx(0.008 / 8, rel=1e-12)
     assert pan.significance == pytest.approx(4.0, rel=1e-12)
-    assert tilt.std_error_a == pytest.approx(STEP_A / math.sqrt(12), rel=1e-12)
+    # all alike: the YAML's noise (8 mA) over sqrt(400) and the step's rounding stays
+    assert tilt.std_error_a == pytest.approx(math.hypot(0.008 / 20, STEP_A / math.sqrt(12)))
+    # two readings that happened to agree do not make a 1 mA std: the YAML's 8 mA at least
+    few = {"mean_a": 0.0, "std_a": 0.0025, "rows": 4, "on_levels": True}
+    assert sensor_zeros(_run({"pan": few}), guard)[0].std_error_a == pytest.approx(0.004)
     # readings not put back on the ADC's levels keep the telemetry's 1 mA rounding
     raw = {**noisy, "on_levels": False}
     assert sensor_zeros(_run({"pan": raw}), guard)[0].std_error_a == pytest.approx(
@@ -188,7 +194,7 @@ def test_the_zeros_std_error_worked_out_by_hand(guard):
 def test_the_zeros_readings_go_on_the_adcs_levels_as_the_logs_currents_do(guard):
     """The capture's whole-mA readings of the rest, by hand: 4 mA is the level 3.90625 mA
     (one step of 4 / 1024 A), -8 mA two steps down; the footer's own mean_a is not used."""
-    zero = {"tilt": {"mean_a": 0.5, "std_a": 9.0, "rows": 4, "readings_ma": {-8: 1, 4: 3}}}
+    zero = {"tilt": {"mean_a": 0.5, "std_a": 9.0, "rows": 4, "readings_ma": [[-8, 1], [4, 3]]}}
     logged = np.round((np.arange(200) - 100) * STEP_A * 1e3) * 1e-3  # levels in whole mA
     run = dataclasses.replace(_run(zero), current=np.column_stack([logged, logged]))
     entry = current_on_adc_levels(run, guard).current_zero["tilt"]
@@ -349,15 +355,17 @@ def test_the_tolerance_is_the_zero_error_that_moves_a_parameter_by_one_std(offse
 def test_subtracting_widens_the_std_by_the_zeros_own_error(offset_captures, guard):
     """The healthy log's zero is noise, taken off all the same: each std is the one
     of the same zero known exactly, plus the change per ampere times the zero's std error
-    (worked out here from the readings put on the ADC's levels: std / sqrt(rows)), in
-    quadrature."""
+    (worked out here from the readings put on the ADC's levels), in quadrature."""
     log = offset_captures["healthy"]
     prepared = current_on_adc_levels(load_run(log), guard).current_zero  # on the levels
     read = {j: prepared[j]["mean_a"] for j in ("pan", "tilt")}
     exact = identify([_with_zero(log, read)], guard,
                      IdentifyOptions(methods=("wls",), current_zero="subtract"))  # fmt: skip
     taken = _fit(log, "subtract", guard)
-    err = [prepared[j]["std_a"] / math.sqrt(prepared[j]["rows"]) for j in ("pan", "tilt")]
+    # the readings' std, at least guard.yaml's 8 mA sensor noise, over sqrt(rows)
+    err = [
+        max(prepared[j]["std_a"], 0.008) / math.sqrt(prepared[j]["rows"]) for j in ("pan", "tilt")
+    ]
     G = exact.current_zero.sensitivity
     extra = (G[:, 0] * err[0]) ** 2 + (G[:, 1] * err[1]) ** 2
     np.testing.assert_allclose(taken.results["wls"].theta, exact.results["wls"].theta,
@@ -411,3 +419,55 @@ def test_validate_and_cv_subtract_the_read_zero_too(offset_captures, tmp_path):
         assert res.exit_code == 0, res.output
         cv[mode] = float(re.search(r"^mean\s+([\d.]+)%", res.output, re.M).group(1))
     assert cv["subtract"] < 0.5 * cv["ignore"]
+
+
+class _StopAfter:
+    """A session whose telemetry reads raise KeyboardInterrupt (Ctrl-C) once ``after`` of
+    them were made after the capture said it is reading the zero (``notify``)."""
+
+    def __init__(self, session, after):
+        self.session, self.after, self.left = session, after, None
+
+    def __getattr__(self, name):
+        return getattr(self.session, name)
+
+    def notify(self, message):
+        if "zero at rest" in message:
+            self.left = self.after
+
+    def next_telemetry(self):
+        if self.left is not None:
+            if self.left == 0:
+                raise KeyboardInterrupt
+            self.left -= 1
+        return self.session.next_telemetry()
+
+
+@pytest.mark.parametrize("after, kept", [(300, True), (5, False)])
+def test_a_stop_during_the_rest_keeps_the_zero_read_so_far(tmp_path, guard, after, kept):
+    """Ctrl-C at rest: every row of the finished trajectory stays, the zero read until then
+    goes to the footer (rows: the reads after the 10 still ticks); with fewer than two
+    readings the footer says it was not read, and identify warns."""
+    from guardid.capture import capture
+    from guardid.excitation.sines import SumOfSines
+    from guardid.link import Session, open_port
+
+    port = open_port("sim://guard?seed=7")
+    session = _StopAfter(Session(port), after)
+    session.handshake()
+    log = tmp_path / "run.csv"
+    traj = SumOfSines([[0.3], [0.1]], [[0.2], [0.3]], [[0.0], [0.0]], [0.0, 0.2])
+    result = capture(session, guard, traj, 10.0, log, {"robot": "guard"}, notify=session.notify,
+                     zero_rest_s=10.0)  # fmt: skip
+    port.close()
+    assert result.ended == "interrupted" and result.rows == 667
+    zero = _footer(log)["current_zero"]
+    if kept:
+        # the joints come to rest first, then the still ticks: of the 300 reads, fewer
+        # than the 10 s asked for are readings, and some are
+        assert 2 <= zero["tilt"]["rows"] <= 300 - STILL_TICKS < math.ceil(10.0 / 0.015)
+        assert zero["tilt"]["rows"] == zero["pan"]["rows"]
+    else:
+        assert "not_measured" in zero and "SIGINT" in zero["not_measured"]
+        res = invoke("identify", log, "--robot", "guard", "--method", "wls")
+        assert "the current sensors' zero was not read (stopped (SIGINT)" in res.output

@@ -17,7 +17,7 @@ from guardid.estimators import LeastSquares, d_tau
 from guardid.identify import HopfieldSettings, IdentifyOptions, identification_rows, identify
 from guardid.identify.methods import run_hopfield
 from guardid.identify.pipeline import identified_names
-from guardid.identify.prepare import current_on_adc_levels
+from guardid.identify.prepare import prepared_runs
 from guardid.identify.runs import load_run, trajectory_highest_harmonic
 from guardid.log import read_log
 from guardid.robot import load_robot
@@ -179,7 +179,7 @@ def test_hopfield_column_is_the_network_not_least_squares(result, logs):
     settle = IdentifyOptions(methods=("hopfield",), hopfield=HopfieldSettings(settle=True))
     both = identify([run], GUARD, settle)
     np.testing.assert_array_equal(both.results["hopfield"].theta, hop.theta)
-    fitted = current_on_adc_levels(run, GUARD)  # the currents identify fits
+    (fitted,), _, _ = prepared_runs([run], GUARD)  # the currents identify fits
     _, A, y = identification_rows(
         run.t, run.q, fitted.current, GUARD, highest_harmonic_hz=_hh(logs["a"])
     )

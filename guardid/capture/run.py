@@ -169,6 +169,7 @@ def capture(
     reached = 0  # ticks of the trajectory reached so far (an interrupted run's length)
     next_report = started
     legs = _Legs(rows, reconnect is not None)
+    rest = _Rest()  # the zero's readings at rest (kept when a stop cuts the rest)
     try:
         _configure(session, description)
         while legs.rows is not None:
@@ -215,13 +216,20 @@ def capture(
                                       reached, n_ticks, notify)  # fmt: skip
                 if legs.rows is not None:
                     _configure(session, description)
-        zero = _current_zero(session, description, zero_rest_s, reached * period)
+        zero = _current_zero(session, description, zero_rest_s, reached * period, notify, rest)
         _idle(session, stop)
     except (CaptureStopped, KeyboardInterrupt) as exc:
         ended, n_ticks = "interrupted", reached  # the ticks this run came to
         _idle(session, stop)
         footer = _footer(session, n_ticks, ended, started, err, names, legs)
         footer["signal"] = str(exc) if isinstance(exc, CaptureStopped) else "SIGINT"
+        if rest.started:  # stopped during the rest: the zero read until then
+            from guardid.capture.zero import zero_of
+
+            footer["current_zero"] = (
+                zero_of(description, rest.readings) if len(rest.readings) >= 2
+                else {"not_measured": f"stopped ({footer['signal']}) during the rest"}
+            )  # fmt: skip
         writer.close(footer)
         return _result(session, writer, n_ticks, err, ended)
     except LinkError as exc:
@@ -248,22 +256,39 @@ def capture(
     if zero is not None:
         footer["current_zero"] = zero
     writer.close(footer)
-    return _result(session, writer, n_ticks, err, ended)
+    result = _result(session, writer, n_ticks, err, ended)
+    result.extra["current_zero"] = zero
+    return result
 
 
-def _current_zero(session: Session, description, rest_s: float | None,
-                  run_s: float) -> dict | None:  # fmt: skip
+class _Rest:
+    """The rest after the run: ``started``, and the ``readings`` so far."""
+
+    def __init__(self) -> None:
+        self.started = False
+        self.readings: list = []
+
+
+def _current_zero(session: Session, description, rest_s: float | None, run_s: float,
+                  notify=None, rest: _Rest | None = None) -> dict | None:  # fmt: skip
     """The footer's ``current_zero`` after a run of ``run_s`` seconds (None when ``rest_s``
-    is 0: not asked for; None: the default rest)."""
+    is 0: not asked for; None: the default rest), said to ``notify`` first; ``rest`` gets
+    the readings as they come."""
     from guardid.capture.zero import default_rest_s, measure_current_zero
 
     if rest_s is None:
         rest_s = default_rest_s(run_s)
     if rest_s <= 0:
         return None
+    if notify is not None:
+        notify(f"trajectory done; the motors at 0 V: reading the current sensors' zero at rest "
+               f"for {rest_s:g} s (--zero-rest)")  # fmt: skip
 
     try:
-        return measure_current_zero(session, description, rest_s)
+        if rest is not None:
+            rest.started = True
+        return measure_current_zero(session, description, rest_s,
+                                    None if rest is None else rest.readings)  # fmt: skip
     except LinkError as exc:
         return {"not_measured": f"link error: {exc}"}
 

@@ -33,22 +33,21 @@ def default_rest_s(run_s: float) -> float:
     return min(max(REST_SHARE * run_s, REST_MIN_S), REST_MAX_S)
 
 
-def measure_current_zero(session, description, rest_s: float) -> dict:
+def measure_current_zero(session, description, rest_s: float, readings=None) -> dict:
     """Hold the motors at 0 V, wait until every joint stood still, then read the current
     sensors for ``rest_s`` seconds (the telemetry must be streaming; the caller puts the
     robot idle after).
 
-    Returns the footer's ``current_zero``: per driven joint ``{mean_a, std_a, rows,
-    readings_ma}`` (the readings' mean and sample std [A], the rows read, and how many
-    read each whole mA: identify puts them on the ADC's levels as it does the log's), or
+    Returns the footer's ``current_zero`` (:func:`zero_of` the readings), or
     ``{not_measured: reason}`` when the joints did not come to rest within SETTLE_LIMIT_S.
-    Link errors propagate (the caller puts the robot idle)."""
+    ``readings`` (a list, optional) receives each reading as it comes (a caller stopped
+    part-way keeps them). Link errors propagate (the caller puts the robot idle)."""
     period = description.sample_period
     need = max(2, math.ceil(rest_s / period))
     limit = need + math.ceil(SETTLE_LIMIT_S / period)
     zero_v = [0.0] * len(description.joints)
     session.set_mode("voltage")
-    readings: list[tuple] = []
+    readings = [] if readings is None else readings
     still, last = 0, None
     for _ in range(limit):
         session.send_voltage(zero_v)
@@ -62,8 +61,16 @@ def measure_current_zero(session, description, rest_s: float) -> dict:
     if len(readings) < need:
         return {
             "not_measured": f"the joints were not at rest for {rest_s:g} s within "
-            f"{SETTLE_LIMIT_S:g} s of the robot put idle"
+            f"{SETTLE_LIMIT_S:g} s of the motors held at 0 V"
         }
+    return zero_of(description, readings)
+
+
+def zero_of(description, readings) -> dict:
+    """Per driven joint ``{mean_a, std_a, rows, readings_ma}`` of ``readings`` (each the
+    telemetry's currents [mA], at least 2): their mean and sample std [A], how many, and
+    [mA, count] pairs (how many read each whole mA, for identify to put them on the ADC's
+    levels as it does the log's currents)."""
     zero = {}
     for j, joint in enumerate(description.joints):
         if joint.drive is None:
@@ -73,5 +80,5 @@ def measure_current_zero(session, description, rest_s: float) -> dict:
         var = sum((v - mean) ** 2 for v in values) / (len(values) - 1)
         counts = Counter(int(r[j]) for r in readings)  # the telemetry's whole mA
         zero[joint.name] = {"mean_a": mean, "std_a": math.sqrt(var), "rows": len(values),
-                            "readings_ma": dict(sorted(counts.items()))}  # fmt: skip
+                            "readings_ma": [[v, c] for v, c in sorted(counts.items())]}  # fmt: skip
     return zero

@@ -134,11 +134,12 @@ def _load_trajectory(path: str):
     "zero_rest_s",
     type=click.FloatRange(min=0.0),
     default=None,
-    help="After the trajectory, put the robot idle and, once its joints stand still, read "
+    help="After the trajectory, hold the motors at 0 V and, once the joints stand still, read "
     "the current sensors for this long [s]: their zero goes to the log's footer "
-    "(current_zero), and identify subtracts it when it differs from 0 beyond its noise "
+    "(current_zero) and identify subtracts it, every std counting its error "
     "(docs/IDENTIFY.md 'The current sensors' zero'). 0: not read. The rows read at rest "
-    "are not logged. [default: 10 % of the run's length, 2 s to 120 s]",
+    "are not logged; a stop (Ctrl-C) during the rest keeps what was read. "
+    "[default: 10 % of the run's length, 2 s to 120 s]",
 )
 def capture(
     port, baud, robot, trajectory_path, duration, periods, timeout, no_reset, output, force,
@@ -182,6 +183,9 @@ def capture(
         f"CRC errors {st['crc_errors']}, framing errors {st['framing_errors']}, "
         f"sequence gaps {st['seq_gaps']}, rms tracking error {errs}"
     )
+    zero = result.extra.get("current_zero")
+    if zero:
+        click.echo(_zero_summary(zero))
     if stream is not None:
         click.echo(stream.summary())
     if tracker is not None:
@@ -193,6 +197,15 @@ def capture(
         click.echo(f"{verdict} (live estimate; guardid identify {output} confirms it)")
         if not live.done():
             sys.exit(4)
+
+
+def _zero_summary(zero: dict) -> str:
+    """The capture's line on the current sensors' zero it read at rest."""
+    if "not_measured" in zero:
+        return f"current sensors' zero: not read ({zero['not_measured']})"
+    parts = [f"{name} {1e3 * z['mean_a']:+.2f} mA" for name, z in zero.items()]
+    rows = max(z["rows"] for z in zero.values())
+    return f"current sensors' zero at rest: {', '.join(parts)} ({rows} rows; in the footer)"
 
 
 def _capture(

@@ -37,6 +37,11 @@ ZERO_SIGNIFICANCE = 4.0
 """A zero beyond this many of its std errors from 0 is a warning [-] (an honest sensor's
 reads beyond it in about 6e-5 of joints)."""
 MODES = ("subtract", "ignore")
+COUNTED = "every std counting its error"
+NOT_COUNTED = (
+    "its error NOT counted in the std (no friction-offset column to carry it: a joint "
+    "without friction in the momentum form; the std hold only if the read zero is exact)"
+)
 TELEMETRY_CURRENT_A = 1e-3  #: the telemetry's current unit [A]: a reading's resolution at least
 
 
@@ -55,13 +60,16 @@ class SensorZero:
         return abs(self.mean_a) / self.std_error_a if self.std_error_a > 0 else math.inf
 
 
-def footer_zero(path, footer: dict | None) -> dict | None:
-    """The footer's ``current_zero`` checked: ``{joint: {mean_a, std_a, rows[, readings_ma]}}``,
-    or None when there is none or it was not measured. One line naming the log and the field when
-    it is malformed."""
+def footer_zero(path, footer: dict | None, joints=None) -> dict | None:
+    """The footer's ``current_zero`` checked: ``{joint: {mean_a, std_a, rows[,
+    readings_ma]}}``, ``{not_measured: why}``, or None when there is none. One line naming
+    the log and the field when it is malformed or names a joint not among ``joints`` (the
+    log's; None: not checked)."""
     zero = (footer or {}).get("current_zero")
-    if zero is None or (isinstance(zero, dict) and "not_measured" in zero):
+    if zero is None:
         return None
+    if isinstance(zero, dict) and "not_measured" in zero:
+        return {"not_measured": str(zero["not_measured"])}
     where = f"{path}: footer: current_zero"
     if not isinstance(zero, dict):
         raise LogFormatError(f"{where}: expected a mapping of joints, got {zero!r}")
@@ -74,16 +82,21 @@ def footer_zero(path, footer: dict | None) -> dict | None:
                 raise LogFormatError(f"{where}: {joint}: {key}: expected a number, got {value!r}")
             if not math.isfinite(value) or (key != "mean_a" and value < 0):
                 raise LogFormatError(f"{where}: {joint}: {key}: {value!r} is not usable")
-        if entry["rows"] < 2:
-            raise LogFormatError(f"{where}: {joint}: rows: {entry['rows']!r} (at least 2)")
+        if not _whole(entry["rows"]) or entry["rows"] < 2:
+            raise LogFormatError(f"{where}: {joint}: rows: {entry['rows']!r} (a count, at least 2)")
+        if joints is not None and joint not in joints:
+            raise LogFormatError(f"{where}: {joint}: not a joint of the log ({', '.join(joints)})")
         hist = entry.get("readings_ma")
         if hist is not None and not (
-            isinstance(hist, dict)
-            and all(_whole(v) and _whole(c) and c >= 1 for v, c in hist.items())
-            and sum(hist.values()) == entry["rows"]
-        ):
-            raise LogFormatError(f"{where}: {joint}: readings_ma: expected whole mA: counts "
-                                 f"summing to rows ({entry['rows']!r})")  # fmt: skip
+            isinstance(hist, list)
+            and all(isinstance(p, list) and len(p) == 2 and all(map(_whole, p)) and p[1] >= 1
+                    for p in hist)
+            and sum(p[1] for p in hist) == entry["rows"]
+        ):  # fmt: skip
+            raise LogFormatError(
+                f"{where}: {joint}: readings_ma: expected [whole mA, count] pairs, the counts "
+                f"summing to rows ({entry['rows']!r})"
+            )
     # what identify works out itself (zero_on_levels) is not taken from the file
     return {j: {k: v for k, v in e.items() if k != "on_levels"} for j, e in zero.items()}
 
@@ -93,7 +106,7 @@ def _whole(x) -> bool:
 
 
 def zero_on_levels(entry: dict, sensor, unit_a: float) -> dict:
-    """A footer zero's entry with its readings (``readings_ma``: {mA: count}) put on the
+    """A footer zero's entry with its readings (``readings_ma``: [mA, count] pairs) put on the
     ADC's levels as the joint's logged current was
     (:func:`~guardid.conditioning.units.readings_on_levels`): mean and std of the levels,
     ``on_levels`` True. The entry as it is when it has no readings or one is no level's."""
@@ -102,8 +115,8 @@ def zero_on_levels(entry: dict, sensor, unit_a: float) -> dict:
     hist = entry.get("readings_ma")
     if not hist:
         return entry
-    values = np.array([float(v) * 1e-3 for v in hist])
-    counts = np.array([int(c) for c in hist.values()], dtype=float)
+    values = np.array([float(v) * 1e-3 for v, _ in hist])
+    counts = np.array([float(c) for _, c in hist])
     levels = readings_on_levels(values, sensor.range, sensor.adc_bits, unit_a)
     if levels is None:
         return entry
@@ -115,24 +128,28 @@ def zero_on_levels(entry: dict, sensor, unit_a: float) -> dict:
 
 def sensor_zeros(run, description) -> list[SensorZero | None]:
     """Per joint of ``description`` the zero ``run``'s footer gives (None: none). Its std
-    error: the readings' std over sqrt(rows); plus the ADC step's rounding (step^2 / 12)
-    when the readings are too quiet to dither it (std below half a step), and the
+    error: the readings' std (at least the description's sensor noise: a few readings' std
+    can be far too small) over sqrt(rows); plus the ADC step's rounding (step^2 / 12) when
+    the readings are too quiet to dither it (their std below half a step), and the
     telemetry unit's (unit^2 / 12) when they were not put back on the ADC's levels
     (:func:`zero_on_levels`)."""
     zero = getattr(run, "current_zero", None) or {}
+    if "not_measured" in zero:
+        zero = {}
     out: list[SensorZero | None] = []
     for joint in description.joints:
         entry = zero.get(joint.name)
         if entry is None or joint.drive is None:
             out.append(None)
             continue
-        step = TELEMETRY_CURRENT_A
+        step, read, rows = TELEMETRY_CURRENT_A, float(entry["std_a"]), int(entry["rows"])
+        std = read
         if joint.current_sensor is not None:
             cs = joint.current_sensor
             step = max(step, 2.0 * cs.range / 2**cs.adc_bits)
-        std, rows = float(entry["std_a"]), int(entry["rows"])
+            std = max(read, float(cs.noise))
         var = std**2 / rows
-        if std < step / 2:  # too quiet to dither the resolution: its rounding stays
+        if read < step / 2:  # too quiet to dither the resolution: its rounding stays
             var += step**2 / 12.0
         if not entry.get("on_levels"):
             # the telemetry's rounding to whole units, not undone: it follows the level, so
@@ -170,6 +187,12 @@ def subtract_zeros(runs, description, mode: str) -> tuple[list, ZerosRead]:
     out, taken, lines, warnings, seen = [], [], [], [], set()
     for run in runs:
         zeros = sensor_zeros(run, description)
+        why = (getattr(run, "current_zero", None) or {}).get("not_measured")
+        if why is not None and (run.source or run.path) not in seen:
+            seen.add(run.source or run.path)
+            warnings.append(f"{run.source or run.path}: the current sensors' zero was not read "
+                            f"({why}): the std hold only while it is known to well within "
+                            "the tolerance the report gives")  # fmt: skip
         if run.torque or not any(zeros):
             out.append(run)
             continue
@@ -193,8 +216,7 @@ def zero_warnings(source, description, zeros) -> list[str]:
     return [
         f"{source}: the {joint.name} current sensor reads {1e3 * z.mean_a:+.2f} +- "
         f"{1e3 * z.std_error_a:.2f} mA at rest ({z.significance:.0f} std errors from 0): its "
-        "zero is off (zeroing the sensor keeps the std honest with --current-zero ignore "
-        "and spares the widening for the error of the zero read)"
+        "zero is off; zero the sensor (here it was taken off, the std widened for its error)"
         for joint, z in zip(description.joints, zeros, strict=True)
         if z is not None and z.significance > ZERO_SIGNIFICANCE
     ]
@@ -204,8 +226,7 @@ def _zero_line(source, description, zeros, mode) -> str:
     pairs = zip(description.joints, zeros, strict=True)
     parts = [f"{j.name} {1e3 * z.mean_a:+.2f} +- {1e3 * z.std_error_a:.2f} mA"
              for j, z in pairs if z is not None]  # fmt: skip
-    done = ("subtracted, every std counting its error" if mode == "subtract"
-            else "left in (--current-zero ignore)")  # fmt: skip
+    done = f"subtracted, {COUNTED}" if mode == "subtract" else "left in (--current-zero ignore)"
     return f"{source}: current sensors' zero read at rest: {', '.join(parts)}: {done}"
 
 
@@ -214,24 +235,34 @@ def zero_sensitivity(fit_rows, description) -> dict[str, np.ndarray] | None:
     driven joint's zero (0 for the others): WLS fitted on the rows, and how its estimate
     moves with the effort shifted by the joint's friction-offset column times N eta Kt over
     the log's rows (:meth:`~guardid.estimators.LeastSquares.effect_of`). WLS stands for
-    every method (each is LS-like or judged against it). None when it cannot be made here:
-    not the momentum form (no offset columns), or effort in current units or measured
-    torque."""
+    every method (each is LS-like or judged against it). In the acceleration form a
+    constant effort stays that constant through the low-pass (the log's ends aside); in
+    current units the effort's own unit. None when it cannot be made: measured torque, or
+    the momentum form without offset columns (a joint without friction)."""
     from guardid.estimators import WeightedLeastSquares
     from guardid.identify.equation import drive_gain
 
     rows = fit_rows.rows
-    O = rows.offset_columns
-    if O is None or fit_rows.effort_is_torque or fit_rows.options.in_current_units:
+    if fit_rows.effort_is_torque:
         return None
+    gain = np.ones(len(description.joints))
+    if not fit_rows.options.in_current_units:
+        gain = drive_gain(description)
+    if rows.options.equation == "momentum":
+        O = rows.offset_columns  # the filtered constant, per unit torque
+        if O is None:
+            return None
+    else:  # the acceleration form: a constant effort stays that constant through its low-pass
+        O = np.zeros((*fit_rows.y.shape, len(gain)))
+        used = np.any(fit_rows.A != 0, axis=2) | (fit_rows.y != 0)
+        for j in range(len(gain)):
+            O[:, j, j] = used[:, j]
     A = fit_rows.A
     wls = WeightedLeastSquares(**rows.error_model()).fit(A, fit_rows.y)
     driven = [j for j, joint in enumerate(description.joints) if joint.drive is not None]
-    gain = drive_gain(description)
     out: dict[str, np.ndarray] = {}
     start = 0
-    for cond, run in zip(rows.runs, fit_rows.runs, strict=True):
-        m = int(np.count_nonzero(cond.mask))
+    for m, run in zip(rows.run_rows, fit_rows.runs, strict=True):
         G = out.setdefault(run.source or run.path, np.zeros((A.shape[2], len(gain))))
         if m:
             D = O[start : start + m][:, :, driven] * gain[driven]  # per ampere
@@ -302,6 +333,7 @@ def zero_stage(fit_rows, results, taken, description, mode, lines=()) -> ZeroOut
     sensitivity = zero_sensitivity(fit_rows, description)
     taken, lines = tuple(taken), tuple(lines)
     if sensitivity is None:
+        lines = tuple(line.replace(COUNTED, NOT_COUNTED) for line in lines)
         return ZeroOutcome(mode, subtracted=taken, lines=lines)
     if taken:
         C = zero_covariance(sensitivity, taken)

@@ -56,7 +56,8 @@ class Rows:
     row's tick (:func:`row_ticks`) and ``lag_ticks``: how near rows share their noise (LS
     and WLS count it in their std; 0: not counted, ``row_ticks`` None).
     ``offset_columns`` (M, n, n): the rows' friction-offset column of each joint [torque
-    units per N m], or None (:attr:`~guardid.identify.equation.FormRows.offset_columns`).
+    units per N m], or None (:attr:`~guardid.identify.equation.FormRows.offset_columns`);
+    ``run_rows``: how many of the rows each run gave, in order.
     """
 
     cond: object
@@ -72,6 +73,7 @@ class Rows:
     row_ticks: np.ndarray | None = None
     lag_ticks: int = 0
     offset_columns: np.ndarray | None = None
+    run_rows: tuple[int, ...] = ()
 
     def __iter__(self):  # (cond, A, y), as before
         return iter((self.cond, self.A, self.y))
@@ -168,7 +170,8 @@ def stacked_rows(
                 form.conds if form.keep_runs else [], column_noise=form.column_noise,
                 period_groups=groups, row_ticks=ticks,
                 lag_ticks=form.lag_ticks if ticks is not None else 0,
-                offset_columns=_joined(form.offset_columns))  # fmt: skip
+                offset_columns=_joined(form.offset_columns),
+                run_rows=tuple(len(a) for a in form.A))  # fmt: skip
 
 
 def row_ticks(conds, lag_ticks: int) -> np.ndarray:
