@@ -142,21 +142,24 @@ def test_the_default_rest_is_a_share_of_the_run_within_its_bounds():
         ({"tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 1}}, "tilt: rows"),
         ({"tilt": {"mean_a": 0.0, "std_a": 0.1}}, "tilt: rows"),
         ({"tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 2.5}}, "tilt: rows"),
-        ({"Tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 3}}, "Tilt: not a joint of the log"),
         (
-            {"tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 3, "readings_ma": {0: 2}}},
+            {"tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 3, "readings_ma": [[0, 2]]}},
             "tilt: readings",
         ),
         (
-            {"tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 3, "readings_ma": {0.5: 3}}},
+            {"tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 3, "readings_ma": [[0.5, 3]]}},
             "tilt: readings",
         ),
         ({"tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 3, "readings_ma": [3]}}, "tilt: readings"),
+        (
+            {"tilt": {"mean_a": 0.0, "std_a": 0.1, "rows": 3, "readings_ma": {0: 3}}},
+            "tilt: readings",
+        ),
     ],
 )
 def test_a_malformed_footer_zero_is_one_line_naming_the_field(entry, field):
     with pytest.raises(LogFormatError, match=f"^log.csv: footer: current_zero: {field}"):
-        footer_zero("log.csv", {"current_zero": entry}, ("pan", "tilt"))
+        footer_zero("log.csv", {"current_zero": entry})
 
 
 def test_no_zero_reads_as_none_and_one_not_measured_says_why():
@@ -232,6 +235,9 @@ def test_every_read_zero_is_subtracted_once_per_log_and_one_off_is_a_warning(gua
     assert subtract_zeros([torque], guard, "subtract")[0][0] is torque
     with pytest.raises(ValueError, match="auto"):
         subtract_zeros(segments, guard, "auto")
+    # a joint the robot does not have (a renamed column): said, not used
+    _, read = subtract_zeros([_run({**zero, "Tilt": small})], guard, "subtract")
+    assert any("current_zero: Tilt: no such joint in the robot" in w for w in read.warnings)
 
 
 # --- end to end on the simulator's own sensor offset -------------------------------------------
@@ -471,3 +477,29 @@ def test_a_stop_during_the_rest_keeps_the_zero_read_so_far(tmp_path, guard, afte
         assert "not_measured" in zero and "SIGINT" in zero["not_measured"]
         res = invoke("identify", log, "--robot", "guard", "--method", "wls")
         assert "the current sensors' zero was not read (stopped (SIGINT)" in res.output
+
+
+def test_the_widening_holds_in_the_acceleration_form_and_in_current_units(offset_captures):
+    """The read zero's error widens the std in either equation form and in current units,
+    by the same share in current units as in torque (current units scale each joint's
+    equation by its gain; WLS's weights take the scale out); a robot whose joints have no
+    friction model (no offset column in the momentum form) says its error is not counted.
+    The healthy log: its zero is noise, so ignoring it changes nothing but the std."""
+    log = offset_captures["healthy"]
+    widening = {}
+    for extra in ([], ["--equation", "acceleration"], ["--current-units"]):
+        std = {}
+        for mode in ("subtract", "ignore"):
+            out = log.parent / f"w{len(extra)}{mode}.yaml"
+            res = invoke("identify", log, "--method", "wls", "--current-zero", mode, *extra,
+                         "-o", out, "--force")  # fmt: skip
+            assert res.exit_code == 0, res.output
+            std[mode] = np.array(yaml.safe_load(out.read_text())["methods"]["wls"]["std"])
+        widening[tuple(extra)] = std["subtract"] / std["ignore"]
+        assert widening[tuple(extra)].max() > 1.2, extra  # MX2R's, Fc1's
+    np.testing.assert_allclose(widening[("--current-units",)], widening[()], rtol=0.05)
+    robot = log.parent / "frictionless.yaml"
+    text = open(load_robot("guard").source, encoding="utf-8").read()
+    robot.write_text(re.sub(r"friction: \{[^}]*\}", "friction: null", text))
+    res = invoke("identify", log, "--robot", robot, "--method", "wls", "--force")
+    assert "its error NOT counted in the std" in res.output

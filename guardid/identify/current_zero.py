@@ -60,11 +60,11 @@ class SensorZero:
         return abs(self.mean_a) / self.std_error_a if self.std_error_a > 0 else math.inf
 
 
-def footer_zero(path, footer: dict | None, joints=None) -> dict | None:
+def footer_zero(path, footer: dict | None) -> dict | None:
     """The footer's ``current_zero`` checked: ``{joint: {mean_a, std_a, rows[,
     readings_ma]}}``, ``{not_measured: why}``, or None when there is none. One line naming
-    the log and the field when it is malformed or names a joint not among ``joints`` (the
-    log's; None: not checked)."""
+    the log and the field when it is malformed (a joint the robot lacks is said by
+    :func:`subtract_zeros`)."""
     zero = (footer or {}).get("current_zero")
     if zero is None:
         return None
@@ -84,8 +84,6 @@ def footer_zero(path, footer: dict | None, joints=None) -> dict | None:
                 raise LogFormatError(f"{where}: {joint}: {key}: {value!r} is not usable")
         if not _whole(entry["rows"]) or entry["rows"] < 2:
             raise LogFormatError(f"{where}: {joint}: rows: {entry['rows']!r} (a count, at least 2)")
-        if joints is not None and joint not in joints:
-            raise LogFormatError(f"{where}: {joint}: not a joint of the log ({', '.join(joints)})")
         hist = entry.get("readings_ma")
         if hist is not None and not (
             isinstance(hist, list)
@@ -186,28 +184,36 @@ def subtract_zeros(runs, description, mode: str) -> tuple[list, ZerosRead]:
         raise ValueError(f"current zero: mode {mode!r} is not one of {', '.join(MODES)}")
     out, taken, lines, warnings, seen = [], [], [], [], set()
     for run in runs:
-        zeros = sensor_zeros(run, description)
-        why = (getattr(run, "current_zero", None) or {}).get("not_measured")
-        if why is not None and (run.source or run.path) not in seen:
-            seen.add(run.source or run.path)
-            warnings.append(f"{run.source or run.path}: the current sensors' zero was not read "
-                            f"({why}): the std hold only while it is known to well within "
-                            "the tolerance the report gives")  # fmt: skip
-        if run.torque or not any(zeros):
-            out.append(run)
-            continue
+        zeros = [None] * len(description.joints) if run.torque else sensor_zeros(run, description)
         source = run.source or run.path
-        if source not in seen:
+        if source not in seen:  # a log's segments share its footer
             seen.add(source)
-            lines.append(_zero_line(source, description, zeros, mode))
-            warnings += zero_warnings(source, description, zeros)
-            if mode == "subtract":
-                taken += [Subtracted(source, j, z) for j, z in enumerate(zeros) if z is not None]
-        if mode == "subtract":
+            warnings += _footer_warnings(source, getattr(run, "current_zero", None) or {},
+                                         description)  # fmt: skip
+            if any(zeros):
+                lines.append(_zero_line(source, description, zeros, mode))
+                warnings += zero_warnings(source, description, zeros)
+                if mode == "subtract":
+                    taken += [Subtracted(source, j, z) for j, z in enumerate(zeros) if z]
+        if mode == "subtract" and any(zeros):
             shift = np.array([0.0 if z is None else z.mean_a for z in zeros])
             run = replace(run, current=np.asarray(run.current, dtype=float) - shift)
         out.append(run)
     return out, ZerosRead(tuple(taken), tuple(lines), tuple(warnings))
+
+
+def _footer_warnings(source, footer: dict, description) -> list[str]:
+    """A zero the capture could not read, and footer joints the robot does not have."""
+    out = []
+    unknown = sorted(set(footer) - {"not_measured"} - {j.name for j in description.joints})
+    if unknown:
+        out.append(f"{source}: footer: current_zero: {', '.join(unknown)}: no such joint in "
+                   "the robot; not used")  # fmt: skip
+    if "not_measured" in footer:
+        out.append(f"{source}: the current sensors' zero was not read "
+                   f"({footer['not_measured']}): the std hold only while it is known to well "
+                   "within the tolerance the report gives")  # fmt: skip
+    return out
 
 
 def zero_warnings(source, description, zeros) -> list[str]:

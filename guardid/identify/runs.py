@@ -167,7 +167,7 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
         joint_names=tuple(joints),
         setpoint=setpoint,
         counts=counts,
-        current_zero=footer_zero(path, data.footer, joints),
+        current_zero=footer_zero(path, data.footer),
     )
 
 

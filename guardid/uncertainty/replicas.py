@@ -47,5 +47,6 @@ def replica_run(run, description, values: dict, phase_counts, supply=None, seed=
                                       seed=seed)  # fmt: skip
     volts[0] = run.voltage[0] if run.voltage is not None else 0.0
     amps[0] = run.current[0]
+    # the simulated sensor reads no zero offset: the log's zero is not the replica's
     return replace(run, path=f"{run.path} (replica)", q=counts / cpr, counts=counts,
-                   current=amps, voltage=volts, qd=None)  # fmt: skip
+                   current=amps, voltage=volts, qd=None, current_zero=None)  # fmt: skip
