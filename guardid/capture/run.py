@@ -134,13 +134,14 @@ def capture(
     feedforward capability): each setpoint goes with its feedforward voltage (SETPOINT_FF).
     The footer's ``tracking_error`` holds each joint's rms and largest |setpoint - angle|
     [rad] over the rows, whatever ended the run. ``zero_rest_s`` > 0: once the trajectory
-    is done (or ``until`` ended it), the robot is put idle and, when its joints stand still,
-    the current sensors are read for this long [s] (None: :func:`guardid.capture.zero.
-    default_rest_s` of the run's length; 0: not read); their zero goes to the footer's
+    is done (or ``until`` ended it), the motors are held at 0 V and, when the joints stand
+    still, the current sensors are read for this long [s] (None: :func:`guardid.capture.
+    zero.default_rest_s` of the run's length; 0: not read); their zero goes to the footer's
     ``current_zero`` (:func:`guardid.capture.zero.measure_current_zero`; a link error
-    there leaves ``not_measured``, the rows kept). Raises :class:`LinkError` after closing the
-    log when the link fails, :class:`LogWriteError` (after putting the robot idle) when the
-    log cannot be written; the rows written until then stay in the file.
+    there leaves ``not_measured``, a stop keeps what was read; the rows are kept). Raises
+    :class:`LinkError` after closing the log when the link fails, :class:`LogWriteError`
+    (after putting the robot idle) when the log cannot be written; the rows written until
+    then stay in the file.
 
     ``reconnect`` (if given, ``capture --reconnect``): when the link is lost mid-run it is
     called to wait for the port, re-attach the session and handshake (it raises
@@ -283,7 +284,6 @@ def _current_zero(session: Session, description, rest_s: float | None, run_s: fl
     if notify is not None:
         notify(f"trajectory done; the motors at 0 V: reading the current sensors' zero at rest "
                f"for {rest_s:g} s (--zero-rest)")  # fmt: skip
-
     try:
         if rest is not None:
             rest.started = True
