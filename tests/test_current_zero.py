@@ -230,6 +230,7 @@ def test_every_read_zero_is_subtracted_once_per_log_and_one_off_is_a_warning(gua
     assert not read.taken and runs[0].current is segments[0].current
     assert read.lines[0].endswith("left in (--current-zero ignore)")
     assert len(read.warnings) == 1  # an off sensor is said whatever is done with it
+    assert "left in: the estimates carry it" in read.warnings[0]
     torque = Run("t.csv", "guard", None, np.arange(5.0), np.zeros((5, 2)), np.ones((5, 2)),
                  None, torque=True, current_zero=zero)  # fmt: skip
     assert subtract_zeros([torque], guard, "subtract")[0][0] is torque

@@ -11,7 +11,8 @@ Two things follow from ``G``:
 
 * the *tolerance*: per joint the zero error [A] that moves some parameter by one of its std
   (the verdict method's). The std say nothing of a zero error; they hold while each sensor's
-  zero is known to well within it. Reported for every motor-current log in the momentum form.
+  zero is known to well within it. Reported for every motor-current log (not for a joint
+  without friction in the momentum form, which has no offset column).
 * a guardid log whose footer has ``current_zero`` (``capture --zero-rest``: the sensors read
   at rest with the motors at 0 V) gives the zero itself, ``mean +- std_error``. ``subtract``
   (default) takes it off the joint's currents, ``ignore`` leaves them (for a zero known
@@ -192,7 +193,7 @@ def subtract_zeros(runs, description, mode: str) -> tuple[list, ZerosRead]:
                                          description)  # fmt: skip
             if any(zeros):
                 lines.append(_zero_line(source, description, zeros, mode))
-                warnings += zero_warnings(source, description, zeros)
+                warnings += zero_warnings(source, description, zeros, mode)
                 if mode == "subtract":
                     taken += [Subtracted(source, j, z) for j, z in enumerate(zeros) if z]
         if mode == "subtract" and any(zeros):
@@ -216,13 +217,15 @@ def _footer_warnings(source, footer: dict, description) -> list[str]:
     return out
 
 
-def zero_warnings(source, description, zeros) -> list[str]:
+def zero_warnings(source, description, zeros, mode: str = "subtract") -> list[str]:
     """One line per joint whose zero (:func:`sensor_zeros`) lies beyond ZERO_SIGNIFICANCE
-    std errors from 0."""
+    std errors from 0 (what was done with it as ``mode`` says)."""
+    done = ("here it was taken off, the std widened for its error" if mode == "subtract"
+            else "here it was left in: the estimates carry it")  # fmt: skip
     return [
         f"{source}: the {joint.name} current sensor reads {1e3 * z.mean_a:+.2f} +- "
         f"{1e3 * z.std_error_a:.2f} mA at rest ({z.significance:.0f} std errors from 0): its "
-        "zero is off; zero the sensor (here it was taken off, the std widened for its error)"
+        f"zero is off; zero the sensor ({done})"
         for joint, z in zip(description.joints, zeros, strict=True)
         if z is not None and z.significance > ZERO_SIGNIFICANCE
     ]
