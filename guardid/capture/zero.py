@@ -1,4 +1,4 @@
-"""The current sensors' zero, read at the end of a capture with the motors idle.
+"""The current sensors' zero, read at the end of a capture with the motors held at 0 V.
 
 A current sensor's zero offset is a constant torque to identification: over the tilt's
 short travel its gravity is nearly a constant torque too, and a pan's Coulomb and viscous

@@ -99,31 +99,28 @@ def current_on_adc_levels(current_a, full_range_a: float, adc_bits: int, unit_a:
     values = current[finite]
     if values.size == 0:
         return None
-    out = current.copy()
+    levels = readings_on_levels(values, full_range_a, bits, unit)  # every value a level's
+    if levels is None:
+        return None
     if step > unit:
-        levels = np.round(values / step) * step
-        near = np.abs(values - levels) <= 0.5 * unit * (1.0 + 1e-6)
-        if not np.all(near) or np.unique(levels).size < distinct_levels_needed(step, unit):
+        if np.unique(levels).size < distinct_levels_needed(step, unit):
             return None
-        out[finite] = levels
-        return out
-    whole = np.round(values / unit)
-    if not np.all(np.abs(values / unit - whole) <= 1e-6):
-        return None
-    mean, count = _preimage(whole, step, unit, bits)
-    needed = -math.log(CHANCE) * (1.0 - 1e-9)  # MIN_TRIPLES capped triples reach it
-    if np.any(count < 1) or _two_level_evidence(whole, step, unit, bits) < needed:
-        return None
-    out[finite] = mean
+    else:
+        needed = -math.log(CHANCE) * (1.0 - 1e-9)  # MIN_TRIPLES capped triples reach it
+        if _two_level_evidence(np.round(values / unit), step, unit, bits) < needed:
+            return None
+    out = current.copy()
+    out[finite] = levels
     return out
 
 
 def readings_on_levels(values_a, full_range_a: float, adc_bits: int, unit_a: float):
-    """Readings [A] (N,) of a joint that :func:`current_on_adc_levels` put on the ADC's
-    levels (its decision made on the joint's logged current) mapped the same way, value by
-    value: the level itself (step > unit), the mean of the levels that round to the value
-    (unit / 2 < step <= unit); None when a value is no level's rounding (or the step
-    neither case)."""
+    """Readings [A] (N,) mapped onto the ADC's levels value by value: the level itself
+    (step > unit), the mean of the levels that round to the value (unit / 2 < step <=
+    unit); None when a value is no level's rounding (or the step neither case). The
+    mapping of :func:`current_on_adc_levels`, which first decides from a joint's whole log
+    that its values are such roundings; the readings of a joint it put on the levels go
+    the same way."""
     unit = float(unit_a)
     step = 2.0 * float(full_range_a) / (1 << int(adc_bits))
     values = np.asarray(values_a, dtype=float)
