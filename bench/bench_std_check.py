@@ -23,6 +23,7 @@ std stays within in 95 % of checks at that seed count (:func:`chance_bands`; at 
         [--seeds 40] [--first-seed 5000] [--jobs 2] [--methods wls] [--keep DIR [--reuse]
         [--reuse-params]] [--capture-only] [--port-options start=50&supply=0.02&ripple=0.01]
         [--cutoff HZ] [--every-tick | --spaced-rows] [--quantisation-bootstrap K]
+        [--zero-before]
 
 Sets: default60, tracking60 (--base-freq 0.2 --harmonics 3), slow60 (--base-freq 0.15
 --harmonics 4), schroeder60 (--kind schroeder), sines60 (--kind sines), modified60 (the
@@ -189,6 +190,7 @@ class Job:
     reuse: bool
     reuse_params: bool
     identify: bool
+    capture_args: tuple[str, ...] = ()
 
 
 def run_job(job: Job):
@@ -201,7 +203,7 @@ def run_job(job: Job):
         part = log.with_suffix(".part")  # renamed when complete: a killed run leaves no log
         err = _guardid("capture", "--trajectory", str(job.traj), "--robot", job.s.robot,
                        "--duration", f"{job.s.duration_s:g}", "--port", port, "--quiet",
-                       "--force", "-o", str(part))  # fmt: skip
+                       "--force", *job.capture_args, "-o", str(part))  # fmt: skip
         if err:
             return job.seed, None, f"capture: {err}"
         part.rename(log)
@@ -360,6 +362,11 @@ def main() -> None:
                     help="identify --spaced-rows (the rows of before 2026-11-27)")  # fmt: skip
     ap.add_argument("--quantisation-bootstrap", type=int, default=0, metavar="K",
                     help="identify --quantisation-bootstrap K (default: off)")  # fmt: skip
+    ap.add_argument(
+        "--zero-before",
+        action="store_true",
+        help="capture --zero-before (the sensors' zero read before the run too)",
+    )
     a = ap.parse_args()
     wanted = [w.partition(":") for w in (list(SETS) if a.sets == "all" else a.sets.split(","))]
     known = {n: find_set(n) for n, _, _ in wanted}
@@ -384,7 +391,8 @@ def main() -> None:
         work.mkdir(parents=True, exist_ok=True)
         trajs = {n: trajectory(work, known[n], reuse) for n in names}
         jobs = [Job(n, known[n], seed, trajs[n], work, a.port_options, a.methods, extra, reuse,
-                    a.reuse_params and reuse, not a.capture_only)
+                    a.reuse_params and reuse, not a.capture_only,
+                    ("--zero-before",) if a.zero_before else ())
                 for n in names for seed in range(a.first_seed, a.first_seed + n_seeds[n])
                 ]  # fmt: skip
         # short captures first; sets of one length take turns seed by seed

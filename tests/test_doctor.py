@@ -127,6 +127,8 @@ def test_cli_exit_code_and_table():
         (["doctor", "--port", "sim://guard?wiring=current_gain:pan=0"], "wiring"),
         (["doctor", "--port", "sim://guard?wiring=cpr:pan=9.5"], "wiring"),
         (["doctor", "--port", "sim://guard?wiring=stuck:pan,stuck:pan"], "wiring"),
+        (["doctor", "--port", "sim://guard?wiring=current_drift:pan=0.2"], "wiring"),
+        (["doctor", "--port", "sim://guard?wiring=current_drift:pan"], "wiring"),
         (["fake-port", "--wiring", "motor_reversed"], "--wiring"),
     ],
 )
@@ -170,6 +172,24 @@ def test_wiring_against_the_clean_plant():
     counts, volts, amps = wired.step_sensors([1.0, 1.0])
     a = clean.step([-1.0, 1.0])
     assert counts == [a.counts[0], 0] and volts[0] == -a.voltage[0] and amps[0] == -a.current[0]
+
+
+def test_a_drifting_current_zero_grows_with_the_robots_time():
+    """current_drift: the sensor's zero moves by rate x the robot's time since power-up
+    (tick k ends at k x 0.015 s), before its ADC: with sensor noise off each reading is the
+    ADC level nearest the true current plus rate x t (guard.yaml: +-2 A over 10 bits, a
+    3.90625 mA step, worked out here), on top of an offset after the ADC; the motion is
+    untouched. The board reads the given rate whatever the sensor's gain."""
+    step = 4.0 / 1024
+    for gain in (1.0, 0.5):
+        extra = f",current_gain:pan={gain}" if gain != 1.0 else ""
+        clean, wired = _plants(f"current_drift:pan=0.002,current_offset:pan=0.01{extra}&noise=0")
+        for k in range(1, 4001):
+            a, b = clean.step([0.5, 0.0]), wired.step([0.5, 0.0])
+            assert b.counts == a.counts
+            inside = a.current_true[0] + 0.002 * k * 0.015 / gain  # the sensor's own amperes
+            level = math.floor(inside / step + 0.5) * step
+            assert b.current[0] == pytest.approx(gain * level + 0.01, abs=1e-12), k
 
 
 # ---------------------------------------------------------------- safety of the moves

@@ -75,16 +75,51 @@ def resume_rows(trajectory, description, counts_now, resume_at: int, n_ticks: in
     ``resume_at`` .. ``n_ticks`` - 1."""
     from guardid.capture.run import setpoint_counts
 
-    per_rad = counts_per_rad(description)
-    q_from = np.asarray(counts_now, dtype=float) / per_rad
     target = setpoint_counts(trajectory, description, 1, resume_at)[0]
-    q_to = target / per_rad
+    approach = approach_counts(description, counts_now, target)
+
+    def tail(start: int, stop: int) -> np.ndarray:
+        return setpoint_counts(trajectory, description, stop - start, resume_at + start)
+
+    return _behind(approach, tail, n_ticks - resume_at), len(approach)
+
+
+def approach_counts(description, counts_from, counts_to) -> np.ndarray:
+    """(ticks, n) setpoints [counts] of the approach from ``counts_from`` to ``counts_to``:
+    the quintic of :func:`approach_ticks`, then the hold of HOLD_S."""
+    per_rad = counts_per_rad(description)
+    q_from = np.asarray(counts_from, dtype=float) / per_rad
+    q_to = np.asarray(counts_to, dtype=float) / per_rad
     ramp = approach_ticks(description, q_from, q_to)
     hold = math.ceil(HOLD_S / description.sample_period)
     tau = np.clip(np.arange(ramp + hold) / ramp, 0.0, 1.0)[:, None]
     s = tau**3 * (10 - 15 * tau + 6 * tau**2)
     approach = np.rint((q_from + s * (q_to - q_from)) * per_rad).astype(np.int64)
-    approach[ramp:] = target
+    approach[ramp:] = np.asarray(counts_to, dtype=np.int64)
+    return approach
+
+
+def start_rows(rows: LazyRows, description, counts_now, target, extra=()):
+    """(rows, approach length): the run's setpoint ``rows`` behind an approach from where the
+    robot rests (``counts_now``) to their first setpoint ``target`` [counts] (:func:`
+    approach_counts`; ``extra``: values after each approach row, the first row's
+    feedforward [mV]), or ``rows`` as they are when the robot rests there. For a run that
+    starts after the motors were held at 0 V (the current sensors' zero read before the
+    trajectory, :mod:`guardid.capture.zero`): an arm that sank onto its stop is led back
+    within the limits' shares, not by a step at the PID's full voltage (a PID slow to
+    hold it against gravity may still lag at the first row)."""
+    if np.array_equal(np.asarray(counts_now), np.asarray(target)):
+        return rows, 0
+    approach = approach_counts(description, counts_now, target)
+    if len(extra):
+        tail = np.tile(np.asarray(extra, dtype=np.int64), (len(approach), 1))
+        approach = np.hstack([approach, tail])
+    return _behind(approach, rows.make, len(rows)), len(approach)
+
+
+def _behind(approach: np.ndarray, tail, n_tail: int) -> LazyRows:
+    """The ``approach`` rows, then the ``n_tail`` rows ``tail(start, stop)`` makes (their
+    own indices from 0), made as a run reaches them."""
     lead = len(approach)
 
     def make(start: int, stop: int) -> np.ndarray:
@@ -92,8 +127,7 @@ def resume_rows(trajectory, description, counts_now, resume_at: int, n_ticks: in
         if start < lead:
             parts.append(approach[start : min(stop, lead)])
         if stop > lead:
-            a = max(start, lead) - lead + resume_at
-            parts.append(setpoint_counts(trajectory, description, stop - max(start, lead), a))
+            parts.append(tail(max(start, lead) - lead, stop - lead))
         return np.concatenate(parts)
 
-    return LazyRows(lead + n_ticks - resume_at, make), lead
+    return LazyRows(lead + n_tail, make)

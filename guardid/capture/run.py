@@ -113,6 +113,7 @@ def capture(
     notify: Callable[[str], None] | None = None,
     feedforward=None,
     zero_rest_s: float | None = 0.0,
+    zero_before: bool = False,
 ) -> CaptureResult:
     """Capture ``duration_s`` seconds of ``trajectory``; write ``log_path``.
 
@@ -134,11 +135,16 @@ def capture(
     feedforward capability): each setpoint goes with its feedforward voltage (SETPOINT_FF).
     The footer's ``tracking_error`` holds each joint's rms and largest |setpoint - angle|
     [rad] over the rows, whatever ended the run. ``zero_rest_s`` > 0: once the trajectory
-    is done (or ``until`` ended it), the motors are held at 0 V and, when the joints stand
-    still, the current sensors are read for this long [s] (None: :func:`guardid.capture.
-    zero.default_rest_s` of the run's length; 0: not read); their zero goes to the footer's
-    ``current_zero`` (:func:`guardid.capture.zero.measure_current_zero`; a link error
-    there leaves ``not_measured``, a stop keeps what was read; the rows are kept). Raises
+    is done (or ``until`` ended it), and with ``zero_before`` before it too, the motors are
+    held at 0 V and, when the joints stand still, the current sensors are read for this
+    long [s] (None: :func:`guardid.capture.zero.default_rest_s` of the run's length, the
+    planned one before; 0: not read); their zeros go to the footer's ``current_zero``
+    and ``current_zero_before``, each joint's with ``t_s``, the readings' mean time on the
+    log's clock [s] (:func:`guardid.capture.zero.measure_current_zero`; a link error there
+    leaves ``not_measured``, a stop keeps what was read; the rows are kept). When the
+    joints moved during the rest before (an arm sinking onto its stop at 0 V), the first
+    leg approaches the trajectory's start from there (its rows not logged; the footer's
+    ``start_approach_ticks``). Raises
     :class:`LinkError` after closing the log when the link fails, :class:`LogWriteError`
     (after putting the robot idle) when the log cannot be written; the rows written until
     then stay in the file.
@@ -170,9 +176,14 @@ def capture(
     reached = 0  # ticks of the trajectory reached so far (an interrupted run's length)
     next_report = started
     legs = _Legs(rows, reconnect is not None)
-    rest = _Rest()  # the zero's readings at rest (kept when a stop cuts the rest)
+    # the zero's readings at rest before and after the run (kept when a stop cuts a rest)
+    rests = {"current_zero_before": _Rest(before=True), "current_zero": _Rest()}
     try:
         _configure(session, description)
+        if zero_before:
+            if _current_zero(session, description, zero_rest_s, duration_s, notify,
+                             rests["current_zero_before"]) is not None:  # fmt: skip
+                legs.approach(session, description, feedforward is not None)
         while legs.rows is not None:
             try:
                 # run-ahead unless a row's answer (--until-std) may end the run at its
@@ -217,26 +228,32 @@ def capture(
                                       reached, n_ticks, notify)  # fmt: skip
                 if legs.rows is not None:
                     _configure(session, description)
-        zero = _current_zero(session, description, zero_rest_s, reached * period, notify, rest)
+        _current_zero(session, description, zero_rest_s, reached * period, notify,
+                      rests["current_zero"])  # fmt: skip
         _idle(session, stop)
     except (CaptureStopped, KeyboardInterrupt) as exc:
         ended, n_ticks = "interrupted", reached  # the ticks this run came to
         _idle(session, stop)
         footer = _footer(session, n_ticks, ended, started, err, names, legs)
         footer["signal"] = str(exc) if isinstance(exc, CaptureStopped) else "SIGINT"
-        if rest.started:  # stopped during the rest: the zero read until then
-            from guardid.capture.zero import zero_of
+        for key, rest in rests.items():
+            if rest.started and rest.zero is None:  # stopped during it: the zero read so far
+                from guardid.capture.zero import zero_of
 
-            footer["current_zero"] = (
-                zero_of(description, rest.readings) if len(rest.readings) >= 2
-                else {"not_measured": f"stopped ({footer['signal']}) during the rest"}
-            )  # fmt: skip
+                rest.zero = (
+                    zero_of(description, rest.readings) if len(rest.readings) >= 2
+                    else {"not_measured": f"stopped ({footer['signal']}) during the rest"}
+                )  # fmt: skip
+            _zero_into(footer, key, rest, first_tick, period)
         writer.close(footer)
         return _result(session, writer, n_ticks, err, ended)
     except LinkError as exc:
         _idle(session, stop)
         ended = f"link error: {exc}"
-        writer.close(_footer(session, n_ticks, ended, started, err, names, legs))
+        footer = _footer(session, n_ticks, ended, started, err, names, legs)
+        for key, rest in rests.items():
+            _zero_into(footer, key, rest, first_tick, period)
+        writer.close(footer)
         raise LinkError(f"{exc} ({writer.rows} rows kept in {log_path})") from None
     except LogWriteError as exc:
         _idle(session, stop)  # the motors first, the file after
@@ -254,43 +271,66 @@ def capture(
             writer.close(_footer(session, n_ticks, ended, started, err, names, legs))
         raise
     footer = _footer(session, n_ticks, ended, started, err, names, legs)
-    if zero is not None:
-        footer["current_zero"] = zero
-    writer.close(footer)
     result = _result(session, writer, n_ticks, err, ended)
-    result.extra["current_zero"] = zero
+    for key, rest in rests.items():
+        _zero_into(footer, key, rest, first_tick, period)
+        if rest.zero is not None:
+            result.extra[key] = footer[key]
+    writer.close(footer)
     return result
 
 
 class _Rest:
-    """The rest after the run: ``started``, and the ``readings`` so far."""
+    """A rest before (``before``) or after the run: ``started``, the ``readings`` so far
+    and their ``ticks``, the ``zero`` read (None: not yet, or not asked for)."""
 
-    def __init__(self) -> None:
+    def __init__(self, before: bool = False) -> None:
+        self.before = before
         self.started = False
         self.readings: list = []
+        self.ticks: list = []
+        self.zero: dict | None = None
+
+
+def _zero_into(footer: dict, key: str, rest: _Rest, first_tick, period: float) -> None:
+    """``rest``'s zero into ``footer[key]``, each joint's with ``t_s``: its readings' mean
+    time on the log's clock [s] (none when the run logged no row or no tick was read)."""
+    if rest.zero is None:
+        return
+    zero = rest.zero
+    ticks = rest.ticks[: len(rest.readings)]
+    if "not_measured" not in zero and first_tick is not None and ticks:
+        t_s = (sum(ticks) / len(ticks) - first_tick) * period
+        zero = {name: {**entry, "t_s": round(t_s, 6)} for name, entry in zero.items()}
+    footer[key] = zero
 
 
 def _current_zero(session: Session, description, rest_s: float | None, run_s: float,
                   notify=None, rest: _Rest | None = None) -> dict | None:  # fmt: skip
-    """The footer's ``current_zero`` after a run of ``run_s`` seconds (None when ``rest_s``
-    is 0: not asked for; None: the default rest), said to ``notify`` first; ``rest`` gets
-    the readings as they come."""
+    """The current sensors' zero read at rest (None when ``rest_s`` is 0: not asked for;
+    None: the default rest for a run of ``run_s`` seconds), said to ``notify`` first;
+    ``rest`` (:class:`_Rest`) gets the readings as they come and the zero; before the run
+    (``rest.before``) the telemetry is started first."""
     from guardid.capture.zero import default_rest_s, measure_current_zero
 
+    rest = _Rest() if rest is None else rest
     if rest_s is None:
         rest_s = default_rest_s(run_s)
     if rest_s <= 0:
         return None
     if notify is not None:
-        notify(f"trajectory done; the motors at 0 V: reading the current sensors' zero at rest "
+        when = "before the trajectory" if rest.before else "trajectory done"
+        notify(f"{when}; the motors at 0 V: reading the current sensors' zero at rest "
                f"for {rest_s:g} s (--zero-rest)")  # fmt: skip
     try:
-        if rest is not None:
-            rest.started = True
-        return measure_current_zero(session, description, rest_s,
-                                    None if rest is None else rest.readings)  # fmt: skip
+        rest.started = True
+        if rest.before:
+            session.start_stream()
+        rest.zero = measure_current_zero(session, description, rest_s, rest.readings,
+                                         rest.ticks)  # fmt: skip
     except LinkError as exc:
-        return {"not_measured": f"link error: {exc}"}
+        rest.zero = {"not_measured": f"link error: {exc}"}
+    return rest.zero
 
 
 def _idle(session: Session, stop: StopRequest | None) -> None:
@@ -332,6 +372,8 @@ def _footer(session: Session, n_ticks: int, ended: str, started: float,
     if legs is not None and legs.counted:
         footer["reconnects"] = len(legs.gaps)
         footer["gaps"] = legs.gaps
+    if legs is not None and legs.start_approach:
+        footer["start_approach_ticks"] = legs.start_approach
     return footer
 
 
@@ -353,6 +395,25 @@ class _Legs:
         self.counted = counted
         self.gaps: list[dict] = []
         self.last_tick: int | None = None
+        self.start_approach = 0  # ticks of the approach before the first leg
+
+    def approach(self, session, description, feedforward: bool) -> None:
+        """After the rest before the run: the first leg approaches the trajectory's start
+        from where the robot rests (:func:`~guardid.capture.resume.start_rows`; with
+        ``feedforward`` each approach row carries the first row's feedforward voltages,
+        which hold the arm there). A lost link leaves the leg as it is: its tracking meets
+        the error, where a reconnect can take it up."""
+        from guardid.capture.resume import start_rows
+
+        try:
+            counts = session.next_telemetry().counts
+        except LinkError:
+            return
+        n = len(description.joints)
+        first = self.rows[0]
+        self.rows, self.lead = start_rows(self.rows, description, counts, first[:n],
+                                          first[n:] if feedforward else ())  # fmt: skip
+        self.start_approach = self.lead
 
     def resume(self, session, reconnect, exc, trajectory, description, reached, n_ticks,
                notify) -> Session:  # fmt: skip

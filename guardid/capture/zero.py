@@ -1,15 +1,17 @@
-"""The current sensors' zero, read at the end of a capture with the motors held at 0 V.
+"""The current sensors' zero, read before and after a capture with the motors held at 0 V.
 
 A current sensor's zero offset is a constant torque to identification: over the tilt's
 short travel its gravity is nearly a constant torque too, and a pan's Coulomb and viscous
 friction take up the rest, so an offset of a fraction of an ADC step moves estimates by
-more than their std (docs/IDENTIFY.md 'The current sensors' zero'). After the trajectory
-the motors are held at 0 V (voltage mode, 0 V sent every tick as ``guardid doctor`` does:
-the watchdog stays fed, and a lock-step port steps at the host's pace); once every
+more than their std (docs/IDENTIFY.md 'The current sensors' zero'). Before the trajectory
+and after it the motors are held at 0 V (voltage mode, 0 V sent every tick as ``guardid
+doctor`` does: the watchdog stays fed, and a lock-step port steps at the host's pace); once every
 joint's counts stood still for STILL_TICKS ticks no current flows, and the mean reading
-over the next ``rest_s`` seconds is the sensors' zero. It goes to the log's footer
-(``current_zero``), which identify reads. The rows read at rest are not logged: they are
-not part of the trajectory.
+over the next ``rest_s`` seconds is the sensors' zero. They go to the log's footer
+(``current_zero_before``, ``current_zero``: each joint's with ``t_s``, the readings' mean
+time on the log's clock), which identify reads: two zeros give the sensor's drift over the
+run, taken off as a straight line between them. The rows read at rest are not logged:
+they are not part of the trajectory.
 """
 
 from __future__ import annotations
@@ -33,7 +35,8 @@ def default_rest_s(run_s: float) -> float:
     return min(max(REST_SHARE * run_s, REST_MIN_S), REST_MAX_S)
 
 
-def measure_current_zero(session, description, rest_s: float, readings=None) -> dict:
+def measure_current_zero(session, description, rest_s: float, readings=None,
+                         ticks=None) -> dict:  # fmt: skip
     """Hold the motors at 0 V, wait until every joint stood still, then read the current
     sensors for ``rest_s`` seconds (the telemetry must be streaming; the caller puts the
     robot idle after).
@@ -41,7 +44,8 @@ def measure_current_zero(session, description, rest_s: float, readings=None) -> 
     Returns the footer's ``current_zero`` (:func:`zero_of` the readings), or
     ``{not_measured: reason}`` when the joints did not come to rest within SETTLE_LIMIT_S.
     ``readings`` (a list, optional) receives each reading as it comes (a caller stopped
-    part-way keeps them). Link errors propagate (the caller puts the robot idle)."""
+    part-way keeps them), ``ticks`` (a list, optional) each reading's tick. Link errors
+    propagate (the caller puts the robot idle)."""
     period = description.sample_period
     need = max(2, math.ceil(rest_s / period))
     limit = need + math.ceil(SETTLE_LIMIT_S / period)
@@ -56,6 +60,8 @@ def measure_current_zero(session, description, rest_s: float, readings=None) -> 
         last = t.counts
         if still >= STILL_TICKS:  # a joint that moves again ends the run of still ticks
             readings.append(t.current_ma)
+            if ticks is not None:
+                ticks.append(t.tick)
             if len(readings) >= need:
                 break
     if len(readings) < need:

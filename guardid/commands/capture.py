@@ -134,17 +134,30 @@ def _load_trajectory(path: str):
     "zero_rest_s",
     type=click.FloatRange(min=0.0),
     default=None,
-    help="After the trajectory, hold the motors at 0 V and, once the joints stand still, read "
-    "the current sensors for this long [s]: their zero goes to the log's footer "
-    "(current_zero) and identify subtracts it, every std counting its error "
-    "(docs/IDENTIFY.md 'The current sensors' zero'). 0: not read. The rows read at rest "
-    "are not logged; a stop (Ctrl-C) during the rest keeps what was read. "
-    "[default: 10 % of the run's length, 2 s to 120 s]",
+    help="After the trajectory (and before it with --zero-before), hold the motors at 0 V "
+    "and, once the joints stand still, read the current sensors for this long [s]: their "
+    "zero goes to the log's footer (current_zero) and identify subtracts it, every std "
+    "counting its error (docs/IDENTIFY.md 'The current sensors' zero'). 0: not read. The "
+    "rows read at rest are not logged; a stop (Ctrl-C) during a rest keeps what was read. "
+    "[default: 10 % of the run's length, 2 s to 120 s; before the run, of the length "
+    "asked for (--duration, --periods; with --until-std its cap)]",
+)
+@click.option(
+    "--zero-before",
+    is_flag=True,
+    help="Read the current sensors' zero before the trajectory too (footer: "
+    "current_zero_before): identify then subtracts the straight line between the two "
+    "zeros, following a zero that drifts during the run (a Hall sensor warming up). An arm "
+    "that sank at 0 V (or a trajectory that does not start where the robot rests) is led "
+    "to the trajectory's first setpoint by an approach within half the joints' limits and "
+    "a 0.5 s hold (its rows not logged; the footer's start_approach_ticks); a PID slow to "
+    "hold the arm against gravity may still lag at the first row. Off by default: the log "
+    "then starts as without it.",
 )
 def capture(
     port, baud, robot, trajectory_path, duration, periods, timeout, no_reset, output, force,
     quiet, online, online_effort, until_std, stream_url, reconnect_s, feedforward_path,
-    zero_rest_s,
+    zero_rest_s, zero_before,
 ):  # fmt: skip
     """Run the trajectory on the robot in closed loop and record telemetry to OUTPUT.
 
@@ -165,6 +178,7 @@ def capture(
                 force, quiet, online, online_effort, stop, until_std, stream_url,
                 reset=not no_reset, reconnect_s=reconnect_s,
                 feedforward_path=feedforward_path, zero_rest_s=zero_rest_s,
+                zero_before=zero_before,
             )  # fmt: skip
         except CaptureStopped:
             end_line()
@@ -183,9 +197,9 @@ def capture(
         f"CRC errors {st['crc_errors']}, framing errors {st['framing_errors']}, "
         f"sequence gaps {st['seq_gaps']}, rms tracking error {errs}"
     )
-    zero = result.extra.get("current_zero")
-    if zero:
-        click.echo(_zero_summary(zero))
+    zeros = {k: result.extra.get(k) for k in ("current_zero_before", "current_zero")}
+    if any(zeros.values()):
+        click.echo(_zero_summary(zeros))
     if stream is not None:
         click.echo(stream.summary())
     if tracker is not None:
@@ -199,19 +213,29 @@ def capture(
             sys.exit(4)
 
 
-def _zero_summary(zero: dict) -> str:
-    """The capture's line on the current sensors' zero it read at rest."""
+def _zero_summary(zeros: dict) -> str:
+    """The capture's line on the current sensors' zeros it read at rest (``zeros``: the
+    footer's ``current_zero_before`` and ``current_zero``, None when not read)."""
+    read = [(k, zeros[k]) for k in ("current_zero_before", "current_zero") if zeros.get(k)]
+    if len(read) == 1:
+        return "current sensors' zero" + _zero_part(read[0][1], "; in the footer")
+    parts = [("before the run" if k == "current_zero_before" else "after it") + _zero_part(z)
+             for k, z in read]  # fmt: skip
+    return f"current sensors' zero {'; '.join(parts)} (in the footer)"
+
+
+def _zero_part(zero: dict, tail: str = "") -> str:
     if "not_measured" in zero:
-        return f"current sensors' zero: not read ({zero['not_measured']})"
+        return f": not read ({zero['not_measured']})"
     parts = [f"{name} {1e3 * z['mean_a']:+.2f} mA" for name, z in zero.items()]
     rows = max(z["rows"] for z in zero.values())
-    return f"current sensors' zero at rest: {', '.join(parts)} ({rows} rows; in the footer)"
+    return f" at rest: {', '.join(parts)} ({rows} rows{tail})"
 
 
 def _capture(
     port, baud, robot, trajectory_path, duration, periods, timeout, output, force, quiet,
     online, online_effort, stop, until_std=None, stream_url=None, reset=True,
-    reconnect_s=None, feedforward_path=None, zero_rest_s=None,
+    reconnect_s=None, feedforward_path=None, zero_rest_s=None, zero_before=False,
 ):  # fmt: skip
     """Check everything, then capture; return (CaptureResult, online tracker or None,
     :class:`guardid.online.information.UntilStd` or None, :class:`guardid.live.udp.UdpStream`
@@ -247,6 +271,8 @@ def _capture(
     trajectory = _load_trajectory(trajectory_path)
     if duration is not None and periods is not None:
         raise ConfigError("--duration and --periods: give one of them, not both")
+    if zero_before and zero_rest_s == 0:
+        raise ConfigError("--zero-before with --zero-rest 0: no zero would be read; give a rest")
     if duration is None and periods is None and until_std is not None:
         duration = UNTIL_STD_CAP_S
     if duration is None:
@@ -325,6 +351,7 @@ def _capture(
             notify=_notify,
             feedforward=feedforward,
             zero_rest_s=zero_rest_s,
+            zero_before=zero_before,
         )
     finally:
         for p in reconnector.ports:

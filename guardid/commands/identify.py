@@ -252,10 +252,12 @@ _SPACED_ROWS_HELP = (
     default="subtract",
     show_default=True,
     help="The current sensors' zero a guardid log's footer gives (capture --zero-rest reads "
-    "it at rest after the run): subtract takes it off the joint's currents and every std "
-    "counts that zero's own error; ignore leaves the currents as logged (for sensors "
-    "zeroed exactly some other way). A zero beyond 4 of its std errors from 0 is a "
-    "warning. docs/IDENTIFY.md 'The current sensors' zero'.",
+    "it at rest after the run, and before it too with --zero-before): subtract takes it off "
+    "the joint's currents (both read: the straight line between them at each row's time) "
+    "and every std counts the zeros' own errors; ignore leaves the currents as logged (for "
+    "sensors zeroed exactly some other way). A zero beyond 4 of its std errors from 0 is a "
+    "warning, and so are two zeros as far apart. docs/IDENTIFY.md 'The current sensors' "
+    "zero'.",
 )
 @click.option(
     "-o",
@@ -587,10 +589,18 @@ def _cross_validate(logs, runs, description, options):
     "encoder counts (--report plots measured and simulated angles). Needs guardid logs with "
     "setpoints (sp_* columns) and a robot with pid: on every joint.",
 )
+@click.option(
+    "--current-zero",
+    "current_zero",
+    type=click.Choice(["subtract", "ignore"]),
+    default=None,
+    help="The current sensors' zero a guardid log's footer gives: subtract or ignore, as "
+    "identify --current-zero [default: the first params file's, else subtract].",
+)
 @force_option("an existing --report file")
 @_foreign_options
 def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, force, simulate,
-             **foreign):  # fmt: skip
+             current_zero, **foreign):  # fmt: skip
     """Score parameter sets on runs LOG [LOG ...]: torque prediction error, all joints stacked.
 
     Every set (each method of each params file, each reference values file) is scored under
@@ -605,7 +615,8 @@ def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, force, 
     check_output(report_path, inputs, option="--report", force=force)
     keep = {}
     click.echo(scored(log, params_paths, robot, cutoff, parallel_hz, foreign, keep,
-                      rows=bool(report_path), simulate=simulate))  # fmt: skip
+                      rows=bool(report_path), simulate=simulate,
+                      current_zero=current_zero))  # fmt: skip
     description, sets, current_units = keep["description"], keep["sets"], keep["current_units"]
     runs = keep["runs"]
     replayed = {} if report_path and simulate else None
@@ -625,14 +636,31 @@ def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, force, 
         click.echo(f"report written to {report_path}")
 
 
+def _stored_zero_mode(path, data) -> str | None:
+    """The ``current_zero.mode`` a params file was identified with (None: not recorded, an
+    older file); ConfigError naming the file and field when it is malformed."""
+    stored = data.get("current_zero")
+    if stored is None:
+        return None
+    if not isinstance(stored, dict):
+        raise ConfigError(f"{path}: current_zero: expected a mapping with mode, got {stored!r}")
+    mode = stored.get("mode")
+    if mode not in ("subtract", "ignore"):
+        raise ConfigError(f"{path}: current_zero: mode: expected subtract or ignore, got "
+                          f"{mode!r}")  # fmt: skip
+    return mode
+
+
 def scored(logs, params_paths, robot, cutoff, parallel_hz, foreign, keep: dict, rows=True,
-           simulate=False) -> str:  # fmt: skip
+           simulate=False, current_zero=None) -> str:  # fmt: skip
     """What ``guardid validate`` prints: every set of ``params_paths`` scored on ``logs``
     under one conditioning (the first params file's, ``cutoff`` / ``parallel_hz`` [Hz]
     override it). ``keep`` receives ``description``, ``sets``, ``current_units``, ``runs``
     and, with ``rows``, what :func:`guardid.identify.validation.validate_runs` keeps
     (``scores``, the conditioned rows, the predictions). ``simulate``: first check that the
-    runs and sets can be replayed (``validate --simulate``), one line each when not."""
+    runs and sets can be replayed (``validate --simulate``), one line each when not.
+    ``current_zero``: what to do with the logs' current sensors' zeros (None: the first
+    params file's ``current_zero.mode``, else subtract)."""
     from guardid.identify import validation as v
 
     first = v.first_params(params_paths)
@@ -665,4 +693,7 @@ def scored(logs, params_paths, robot, cutoff, parallel_hz, foreign, keep: dict, 
                           "units has no rigid body in N m to simulate")  # fmt: skip
     keep.update(description=description, sets=sets, current_units=current_units, runs=runs)
     kept = keep if rows else None
-    return v.validate_runs(runs, logs, description, sets, options, current_units, keep=kept)
+    if current_zero is None and first:
+        current_zero = _stored_zero_mode(*first)
+    return v.validate_runs(runs, logs, description, sets, options, current_units, keep=kept,
+                           current_zero=current_zero or "subtract")  # fmt: skip

@@ -33,7 +33,8 @@ _FAULTS = {
     "or a reference values file (docs/REPLAY.md)",
     "method": "with --params: the params file's method [default: its first]",
     "wiring": "wiring faults, comma-separated kind:joint[=value] (encoder_reversed, "
-    "motor_reversed, current_offset=A, current_gain=G, cpr=COUNTS, stuck; guardid doctor)",
+    "motor_reversed, current_offset=A, current_drift=A_PER_S, current_gain=G, cpr=COUNTS, "
+    "stuck; guardid doctor)",
 }
 
 

@@ -61,7 +61,9 @@ def current_on_adc_levels(run, description, in_place: bool = False):
     if run.torque or joints is None or run.current is None:
         return run
     (unit,) = [f.scale for f in SPEC.by_name("TELEMETRY").fields if f.name == "current"]
-    current, zero = run.current, getattr(run, "current_zero", None)
+    current = run.current
+    keys = ("current_zero", "current_zero_before")
+    zeros = {k: getattr(run, k, None) for k in keys}
     for j, joint in enumerate(joints):
         sensor = joint.current_sensor
         if sensor is None or j >= current.shape[1]:
@@ -69,20 +71,23 @@ def current_on_adc_levels(run, description, in_place: bool = False):
         levels = on_levels(current[:, j], sensor.range, sensor.adc_bits, unit)
         if levels is None:
             continue
-        if zero and joint.name in zero and not zero[joint.name].get("on_levels"):
-            # the zero read at rest the same way (guardid.identify.current_zero)
-            zero = {**zero, joint.name: zero_on_levels(zero[joint.name], sensor, unit)}
+        for k, zero in zeros.items():
+            if zero and joint.name in zero and not zero[joint.name].get("on_levels"):
+                # the zeros read at rest the same way (guardid.identify.current_zero)
+                zeros[k] = {**zero, joint.name: zero_on_levels(zero[joint.name], sensor, unit)}
         if np.array_equal(levels, current[:, j]):
             continue
         if current is run.current and not (in_place and current.flags.writeable):
             current = np.array(current)
         current[:, j] = levels
-    if current is run.current and zero is getattr(run, "current_zero", None):
+    if current is run.current and all(zeros[k] is getattr(run, k, None) for k in keys):
         return run
     if in_place:
-        run.current, run.current_zero = current, zero
+        run.current = current
+        for k, zero in zeros.items():
+            setattr(run, k, zero)
         return run
-    return replace(run, current=current, current_zero=zero)
+    return replace(run, current=current, **zeros)
 
 
 def _in_joint_order(run, description):

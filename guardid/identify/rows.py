@@ -57,7 +57,8 @@ class Rows:
     and WLS count it in their std; 0: not counted, ``row_ticks`` None).
     ``offset_columns`` (M, n, n): the rows' friction-offset column of each joint [torque
     units per N m], or None (:attr:`~guardid.identify.equation.FormRows.offset_columns`);
-    ``run_rows``: how many of the rows each run gave, in order.
+    ``run_rows``: how many of the rows each run gave, in order; ``row_t`` (M,): each row's
+    time on its own run's clock [s] (not the joined, shifted ``cond.t``).
     """
 
     cond: object
@@ -74,6 +75,7 @@ class Rows:
     lag_ticks: int = 0
     offset_columns: np.ndarray | None = None
     run_rows: tuple[int, ...] = ()
+    row_t: np.ndarray | None = None
 
     def __iter__(self):  # (cond, A, y), as before
         return iter((self.cond, self.A, self.y))
@@ -171,7 +173,16 @@ def stacked_rows(
                 period_groups=groups, row_ticks=ticks,
                 lag_ticks=form.lag_ticks if ticks is not None else 0,
                 offset_columns=_joined(form.offset_columns),
-                run_rows=tuple(len(a) for a in form.A))  # fmt: skip
+                run_rows=tuple(len(a) for a in form.A), row_t=_row_times(form))  # fmt: skip
+
+
+def _row_times(form) -> np.ndarray | None:
+    """(M,) each stacked row's time on its run's clock [s] (None when the conditioned
+    samples do not line up with the rows)."""
+    times = [np.asarray(c.t, dtype=float)[c.mask] for c in form.conds]
+    if [len(t) for t in times] != [len(a) for a in form.A]:
+        return None
+    return np.concatenate(times)
 
 
 def row_ticks(conds, lag_ticks: int) -> np.ndarray:

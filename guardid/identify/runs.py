@@ -22,8 +22,9 @@ class Run:
     samples, used as they are). ``highest_harmonic_hz``: the excitation's highest frequency
     [Hz] named by a guardid log's header (None when unknown: foreign logs);
     ``excitation_period_s``: the period [s] after which its excitation repeats (None when
-    unknown or not periodic); ``current_zero``: the footer's current sensors' zero per joint
-    name (:func:`guardid.identify.current_zero.footer_zero`; None: not read).
+    unknown or not periodic); ``current_zero``, ``current_zero_before``: the footer's current
+    sensors' zeros per joint name read at rest after and before the trajectory
+    (:func:`guardid.identify.current_zero.footer_zero`; None: not read).
     """
 
     path: str
@@ -44,6 +45,7 @@ class Run:
     source: str | None = None  # the file a segment comes from (None: path is the file)
     excitation_period_s: float | None = None
     current_zero: dict | None = None  # a guardid log footer's current sensors' zero read at rest
+    current_zero_before: dict | None = None  # and the one read before the trajectory
 
 
 def trajectory_highest_harmonic(trajectory: dict | None) -> float | None:
@@ -168,6 +170,7 @@ def load_run(path, sample_period_s: float | None = None, mapping=None, descripti
         setpoint=setpoint,
         counts=counts,
         current_zero=footer_zero(path, data.footer),
+        current_zero_before=footer_zero(path, data.footer, "current_zero_before"),
     )
 
 

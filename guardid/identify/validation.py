@@ -299,8 +299,11 @@ def stored_conditioning(path, data) -> ConditioningOptions:
     )
 
 
-def validate_runs(runs, names, description, sets, options, current_units=False, keep=None) -> str:
-    """The ``guardid validate`` report: every set on every run under ``options``.
+def validate_runs(runs, names, description, sets, options, current_units=False, keep=None,
+                  current_zero: str = "subtract") -> str:  # fmt: skip
+    """The ``guardid validate`` report: every set on every run under ``options``, the logs'
+    current sensors' zeros taken off or not as ``current_zero`` says (``subtract``,
+    ``ignore``: :func:`~guardid.identify.current_zero.subtract_zeros`).
 
     ``keep`` (a dict, optional) receives what the HTML report draws: ``conds`` (per run),
     ``scores``, ``preds`` ((run, label) -> predicted effort) and ``head``.
@@ -313,7 +316,7 @@ def validate_runs(runs, names, description, sets, options, current_units=False, 
 
     torque = bool(runs[0].torque)
     runs = [current_on_adc_levels(r, description) for r in runs]  # as identify fitted them
-    runs, zeros = subtract_zeros(runs, description, "subtract")  # as identify does
+    runs, zeros = subtract_zeros(runs, description, current_zero)  # as identify does
     split = split_runs(runs, options.cutoff_hz, description=description)  # segments as runs
     if split.gaps or split.jumps:
         runs, names = split.runs, [r.path for r in split.runs]

@@ -139,6 +139,9 @@ class Plant:
         self._held = [jc.fc > 0.0 and v == 0.0 for jc, v in zip(self.joints, qd, strict=True)]
         self._stop = [0, 0]
         self._tick = 0
+        self.current_drift_a_per_s = [0.0, 0.0]
+        """Per joint how fast its current sensor's zero moves [A/s of the robot's time],
+        before the sensor's ADC (``sim://...&wiring=current_drift:J=R``)."""
         self._edges = self._quad_counts(q)
         self._counts = list(self._edges)
         self._last_sign = [1.0, 1.0]
@@ -494,6 +497,7 @@ class Plant:
         self._m = mass(q2) if mass is not None else self._dyn(q1, q2, *self._qd)[:3]
         v_true, i_true, v_meas, i_meas = [], [], [], []
         q, qd, cur, held, acc = self._q, self._qd, self._i, self._held, self._acc
+        t_end, drift = self._tick * T, self.current_drift_a_per_s
         for j, (driven, r, te, k, vsense, isense) in enumerate(self._sensing):
             if not driven:
                 vm, im = 0.0, 0.0
@@ -510,6 +514,8 @@ class Plant:
                 vm = v
             v_true.append(vm)
             i_true.append(im)
+            if drift[j]:  # the sensor's zero, before its ADC
+                im += drift[j] * t_end
             if vsense is not None:
                 full_range, bits, sigma = vsense
                 vm = adc_quantise(vm + (gauss(0.0, sigma) if noise else 0.0), full_range, bits)

@@ -8,6 +8,9 @@ One option lists them, comma-separated, each ``kind:joint`` or ``kind:joint=valu
   still read the board's sign;
 * ``current_offset:J=A`` -- J's current sensor reads A amperes more than flows (a zero
   that is off: a reference voltage, an uncalibrated Hall sensor);
+* ``current_drift:J=R`` -- and its zero moves by R amperes per second of the robot's time
+  from power-up (a Hall sensor warming up; in the sensor, before its ADC, so the readings
+  stay on the ADC's levels, unlike the offset's);
 * ``current_gain:J=G`` -- and G times the current (a sensor of another sensitivity than the
   YAML's; negative: mounted the other way round);
 * ``cpr:J=C`` -- J's encoder gives C counts per motor revolution where the YAML says its
@@ -30,6 +33,7 @@ KINDS = {
     "encoder_reversed": False,
     "motor_reversed": False,
     "current_offset": True,
+    "current_drift": True,
     "current_gain": True,
     "cpr": True,
     "stuck": False,
@@ -37,12 +41,14 @@ KINDS = {
 """Fault kinds, and whether each takes ``=value``."""
 MAX_CURRENT_OFFSET_A = 10.0  #: largest |current_offset| [A]
 MAX_CURRENT_GAIN = 10.0  #: largest |current_gain| [-]
+MAX_CURRENT_DRIFT_A_PER_S = 0.1  #: largest |current_drift| [A/s]
 
 
 @dataclass(frozen=True)
 class WiringFault:
     """One fault: ``kind`` (a key of :data:`KINDS`) on joint ``joint``, its ``value``
-    (A for current_offset, - for current_gain, counts per motor rev for cpr; else None)."""
+    (A for current_offset, A/s for current_drift, - for current_gain, counts per motor rev
+    for cpr; else None)."""
 
     kind: str
     joint: str
@@ -66,6 +72,8 @@ def _value(kind: str, text: str) -> float:
         raise ValueError(f"current_gain: must be nonzero, |gain| <= {MAX_CURRENT_GAIN:g}")
     if kind == "current_offset" and abs(value) > MAX_CURRENT_OFFSET_A:
         raise ValueError(f"current_offset: |offset| must be <= {MAX_CURRENT_OFFSET_A:g} A")
+    if kind == "current_drift" and abs(value) > MAX_CURRENT_DRIFT_A_PER_S:
+        raise ValueError(f"current_drift: |drift| must be <= {MAX_CURRENT_DRIFT_A_PER_S:g} A/s")
     return value
 
 
@@ -97,12 +105,13 @@ def parse_wiring(text: str) -> tuple[WiringFault, ...]:
 @dataclass(frozen=True)
 class JointWiring:
     """What the wiring does to one joint: encoder sign and count ratio, motor sign,
-    current sensor offset [A] and gain, a stuck encoder."""
+    current sensor offset [A], its drift [A/s] and gain, a stuck encoder."""
 
     encoder_sign: int = 1
     count_ratio: float = 1.0  # encoder counts per YAML count
     motor_sign: int = 1
     current_offset: float = 0.0  # [A]
+    current_drift: float = 0.0  # [A/s] of the robot's time
     current_gain: float = 1.0
     stuck: bool = False
 
@@ -133,6 +142,8 @@ def joint_wiring(description, faults) -> list[JointWiring]:
             per[k]["motor_sign"] = -1
         elif f.kind == "current_offset":
             per[k]["current_offset"] = f.value
+        elif f.kind == "current_drift":
+            per[k]["current_drift"] = f.value
         elif f.kind == "current_gain":
             per[k]["current_gain"] = f.value
         elif f.kind == "cpr":
@@ -219,7 +230,13 @@ class WiredPlant:
 
 
 def wire(plant, description, faults):
-    """``plant`` behind the wiring ``faults`` (the plant itself when there are none)."""
+    """``plant`` behind the wiring ``faults`` (the plant itself when there are none). A
+    drifting sensor zero is set in the plant's sensor (before its ADC), scaled so that the
+    board reads it as given whatever the sensor's gain and the motor leads' sign."""
     if not faults:
         return plant
-    return WiredPlant(plant, joint_wiring(description, faults))
+    wiring = joint_wiring(description, faults)
+    for j, w in enumerate(wiring):
+        if w.current_drift:
+            plant.current_drift_a_per_s[j] = w.current_drift / (w.current_gain * w.motor_sign)
+    return WiredPlant(plant, wiring)
