@@ -879,3 +879,40 @@ def test_the_approach_carries_the_first_rows_feedforward(guard):
     lost = _Legs(rows, counted=False)
     lost.approach(_Session([], fail_at=0), guard, feedforward=True)
     assert lost.rows is rows and lost.lead == 0
+
+
+@pytest.mark.parametrize("how", ["disk full", "a bug in a caller's per-row work"])
+def test_the_zero_read_before_the_run_stays_in_the_footer_whatever_ends_it(
+    tmp_path, guard, monkeypatch, how
+):
+    """A disk that fills at the 37th row (space back for the footer), or any other error
+    mid-run: the footer written after the robot was put idle keeps the zero read before."""
+    from test_capture_outputs import DiskFull
+
+    from guardid.capture import capture
+    from guardid.excitation.sines import SumOfSines
+    from guardid.link import Session, open_port
+    from guardid.log import LogWriteError, LogWriter
+
+    on_row, error = None, LogWriteError
+    if how == "disk full":
+        monkeypatch.setattr(LogWriter, "_write", staticmethod(DiskFull(37, heals=True)))
+    else:
+        error = ZeroDivisionError
+
+        def on_row(t, *_):
+            if t > 0.5:
+                raise ZeroDivisionError("a caller's bug")
+
+    port = open_port("sim://guard?seed=3")
+    session = Session(port)
+    session.handshake()
+    log = tmp_path / "run.csv"
+    traj = SumOfSines([[0.3], [0.1]], [[0.2], [0.3]], [[0.0], [0.0]], [0.0, 0.2])
+    with pytest.raises(error):
+        capture(session, guard, traj, 10.0, log, {"robot": "guard"}, on_row=on_row,
+                zero_rest_s=1.0, zero_before=True)  # fmt: skip
+    port.close()
+    footer = _footer(log)
+    assert footer["ended"].startswith(("log write error", "error: ZeroDivisionError"))
+    assert footer["current_zero_before"]["tilt"]["rows"] == math.ceil(1.0 / 0.015)

@@ -141,9 +141,10 @@ def capture(
     planned one before; 0: not read); their zeros go to the footer's ``current_zero``
     and ``current_zero_before``, each joint's with ``t_s``, the readings' mean time on the
     log's clock [s] (:func:`guardid.capture.zero.measure_current_zero`; a link error there
-    leaves ``not_measured``, a stop keeps what was read; the rows are kept). When the
-    joints moved during the rest before (an arm sinking onto its stop at 0 V), the first
-    leg approaches the trajectory's start from there (its rows not logged; the footer's
+    leaves ``not_measured``, a stop keeps what was read; the rows are kept; whatever ends
+    the run, the zeros read go to its footer). When the robot does not rest at the
+    trajectory's first setpoint after the rest before (an arm sunk onto its stop at 0 V),
+    the first leg approaches it from there (its rows not logged; the footer's
     ``start_approach_ticks``). Raises
     :class:`LinkError` after closing the log when the link fails, :class:`LogWriteError`
     (after putting the robot idle) when the log cannot be written; the rows written until
@@ -178,6 +179,14 @@ def capture(
     legs = _Legs(rows, reconnect is not None)
     # the zero's readings at rest before and after the run (kept when a stop cuts a rest)
     rests = {"current_zero_before": _Rest(before=True), "current_zero": _Rest()}
+
+    def footer_of(ended: str) -> dict:
+        """The footer as the run ended, the zeros read so far in it."""
+        footer = _footer(session, n_ticks, ended, started, err, names, legs)
+        for key, rest in rests.items():
+            _zero_into(footer, key, rest, first_tick, period)
+        return footer
+
     try:
         _configure(session, description)
         if zero_before:
@@ -234,32 +243,29 @@ def capture(
     except (CaptureStopped, KeyboardInterrupt) as exc:
         ended, n_ticks = "interrupted", reached  # the ticks this run came to
         _idle(session, stop)
-        footer = _footer(session, n_ticks, ended, started, err, names, legs)
-        footer["signal"] = str(exc) if isinstance(exc, CaptureStopped) else "SIGINT"
-        for key, rest in rests.items():
+        signal = str(exc) if isinstance(exc, CaptureStopped) else "SIGINT"
+        for rest in rests.values():
             if rest.started and rest.zero is None:  # stopped during it: the zero read so far
                 from guardid.capture.zero import zero_of
 
                 rest.zero = (
                     zero_of(description, rest.readings) if len(rest.readings) >= 2
-                    else {"not_measured": f"stopped ({footer['signal']}) during the rest"}
+                    else {"not_measured": f"stopped ({signal}) during the rest"}
                 )  # fmt: skip
-            _zero_into(footer, key, rest, first_tick, period)
+        footer = footer_of(ended)
+        footer["signal"] = signal
         writer.close(footer)
         return _result(session, writer, n_ticks, err, ended)
     except LinkError as exc:
         _idle(session, stop)
         ended = f"link error: {exc}"
-        footer = _footer(session, n_ticks, ended, started, err, names, legs)
-        for key, rest in rests.items():
-            _zero_into(footer, key, rest, first_tick, period)
-        writer.close(footer)
+        writer.close(footer_of(ended))
         raise LinkError(f"{exc} ({writer.rows} rows kept in {log_path})") from None
     except LogWriteError as exc:
         _idle(session, stop)  # the motors first, the file after
         try:
             ended = f"log write error: {exc}"
-            writer.close(_footer(session, n_ticks, ended, started, err, names, legs))
+            writer.close(footer_of(ended))
             footer = "footer written"
         except LogWriteError:
             footer = "no footer"
@@ -268,14 +274,11 @@ def capture(
         _idle(session, stop)
         with contextlib.suppress(LogWriteError):
             ended = f"error: {type(exc).__name__}: {exc}"
-            writer.close(_footer(session, n_ticks, ended, started, err, names, legs))
+            writer.close(footer_of(ended))
         raise
-    footer = _footer(session, n_ticks, ended, started, err, names, legs)
+    footer = footer_of(ended)
     result = _result(session, writer, n_ticks, err, ended)
-    for key, rest in rests.items():
-        _zero_into(footer, key, rest, first_tick, period)
-        if rest.zero is not None:
-            result.extra[key] = footer[key]
+    result.extra.update({k: footer[k] for k in rests if k in footer})
     writer.close(footer)
     return result
 

@@ -1,17 +1,17 @@
-"""The current sensors' zero, read before and after a capture with the motors held at 0 V.
+"""The current sensors' zero, read after a capture (and before it) with the motors at 0 V.
 
 A current sensor's zero offset is a constant torque to identification: over the tilt's
 short travel its gravity is nearly a constant torque too, and a pan's Coulomb and viscous
 friction take up the rest, so an offset of a fraction of an ADC step moves estimates by
-more than their std (docs/IDENTIFY.md 'The current sensors' zero'). Before the trajectory
-and after it the motors are held at 0 V (voltage mode, 0 V sent every tick as ``guardid
-doctor`` does: the watchdog stays fed, and a lock-step port steps at the host's pace); once every
-joint's counts stood still for STILL_TICKS ticks no current flows, and the mean reading
-over the next ``rest_s`` seconds is the sensors' zero. They go to the log's footer
-(``current_zero_before``, ``current_zero``: each joint's with ``t_s``, the readings' mean
-time on the log's clock), which identify reads: two zeros give the sensor's drift over the
-run, taken off as a straight line between them. The rows read at rest are not logged:
-they are not part of the trajectory.
+more than their std (docs/IDENTIFY.md 'The current sensors' zero'). After the trajectory
+(and before it, ``capture --zero-before``) the motors are held at 0 V (voltage mode, 0 V
+sent every tick as ``guardid doctor`` does: the watchdog stays fed, and a lock-step port
+steps at the host's pace); once every joint's counts stood still for STILL_TICKS ticks no
+current flows, and the mean reading over the next ``rest_s`` seconds is the sensors' zero.
+It goes to the log's footer (``current_zero``, ``current_zero_before``: each joint's with
+``t_s``, the readings' mean time on the log's clock), which identify reads: two zeros give
+the sensor's drift over the run, taken off as a straight line between them. The rows read
+at rest are not logged: they are not part of the trajectory.
 """
 
 from __future__ import annotations
