@@ -639,14 +639,16 @@ def validate(log, params_paths, robot, cutoff, parallel_hz, report_path, force, 
 def _stored_zero_mode(path, data) -> str | None:
     """The ``current_zero.mode`` a params file was identified with (None: not recorded, an
     older file); ConfigError naming the file and field when it is malformed."""
+    from guardid.identify.current_zero import MODES
+
     stored = data.get("current_zero")
     if stored is None:
         return None
     if not isinstance(stored, dict):
         raise ConfigError(f"{path}: current_zero: expected a mapping with mode, got {stored!r}")
     mode = stored.get("mode")
-    if mode not in ("subtract", "ignore"):
-        raise ConfigError(f"{path}: current_zero: mode: expected subtract or ignore, got "
+    if mode not in MODES:
+        raise ConfigError(f"{path}: current_zero: mode: expected {' or '.join(MODES)}, got "
                           f"{mode!r}")  # fmt: skip
     return mode
 

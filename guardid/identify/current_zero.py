@@ -46,6 +46,7 @@ ZERO_SIGNIFICANCE = 4.0
 """A zero beyond this many of its std errors from 0 is a warning [-] (an honest sensor's
 reads beyond it in about 6e-5 of joints)."""
 MODES = ("subtract", "ignore")
+KEYS = ("current_zero_before", "current_zero")  #: the footer's zeros, before and after the run
 COUNTED = "every std counting its error"
 NOT_COUNTED = (
     "its error NOT counted in the std (no friction-offset column to carry it: a joint "
@@ -283,12 +284,11 @@ def subtract_zeros(runs, description, mode: str) -> tuple[list, ZerosRead]:
         source = run.source or run.path
         if source not in seen:  # a log's segments share its footer
             seen.add(source)
-            for key, other in (("current_zero_before", "current_zero"),
-                               ("current_zero", "current_zero_before")):  # fmt: skip
-                read_other = bool(getattr(run, other, None)) and "not_measured" not in (
-                    getattr(run, other, None) or {})  # fmt: skip
-                warnings += _footer_warnings(source, getattr(run, key, None) or {},
-                                             description, key, read_other)  # fmt: skip
+            footers = {k: getattr(run, k, None) or {} for k in KEYS}
+            for key, other in zip(KEYS, reversed(KEYS), strict=True):
+                read_other = bool(footers[other]) and "not_measured" not in footers[other]
+                warnings += _footer_warnings(source, footers[key], description, key,
+                                             read_other)  # fmt: skip
             if any(reads):
                 lines.append(_zero_line(source, description, reads, mode))
                 warnings += zero_warnings(source, description, reads, mode)

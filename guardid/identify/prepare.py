@@ -54,7 +54,7 @@ def current_on_adc_levels(run, description, in_place: bool = False):
     current sensors' zero of a joint put on its levels is read off them the same way
     (:func:`~guardid.identify.current_zero.zero_on_levels`)."""
     from guardid.conditioning.units import current_on_adc_levels as on_levels
-    from guardid.identify.current_zero import zero_on_levels
+    from guardid.identify.current_zero import KEYS, zero_on_levels
     from guardid.protocol.codec import SPEC
 
     joints = getattr(description, "joints", None)
@@ -62,8 +62,7 @@ def current_on_adc_levels(run, description, in_place: bool = False):
         return run
     (unit,) = [f.scale for f in SPEC.by_name("TELEMETRY").fields if f.name == "current"]
     current = run.current
-    keys = ("current_zero", "current_zero_before")
-    zeros = {k: getattr(run, k, None) for k in keys}
+    zeros = {k: getattr(run, k, None) for k in KEYS}
     for j, joint in enumerate(joints):
         sensor = joint.current_sensor
         if sensor is None or j >= current.shape[1]:
@@ -80,7 +79,7 @@ def current_on_adc_levels(run, description, in_place: bool = False):
         if current is run.current and not (in_place and current.flags.writeable):
             current = np.array(current)
         current[:, j] = levels
-    if current is run.current and all(zeros[k] is getattr(run, k, None) for k in keys):
+    if current is run.current and all(zeros[k] is getattr(run, k, None) for k in KEYS):
         return run
     if in_place:
         run.current = current
