@@ -916,3 +916,17 @@ def test_the_zero_read_before_the_run_stays_in_the_footer_whatever_ends_it(
     footer = _footer(log)
     assert footer["ended"].startswith(("log write error", "error: ZeroDivisionError"))
     assert footer["current_zero_before"]["tilt"]["rows"] == math.ceil(1.0 / 0.015)
+
+
+def test_a_zero_not_read_at_one_rest_says_what_was_done_with_the_other(guard):
+    """The zero before the run not read, the one after read: subtracted, the one after is
+    taken off as a constant; under --current-zero ignore the warning says it is left in."""
+    after = {"pan": {"mean_a": 0.001, "std_a": 0.008, "rows": 400}}
+    run = dataclasses.replace(_run(after), current_zero_before={"not_measured": "link error: x"})
+    for mode, said in (
+        ("subtract", "the one read after it is taken off as a constant"),
+        ("ignore", "the one read after it is left in (--current-zero ignore)"),
+    ):
+        _, read = subtract_zeros([run], guard, mode)
+        (line,) = [w for w in read.warnings if "was not read before the run" in w]
+        assert said in line, line

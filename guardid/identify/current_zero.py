@@ -288,7 +288,7 @@ def subtract_zeros(runs, description, mode: str) -> tuple[list, ZerosRead]:
             for key, other in zip(KEYS, reversed(KEYS), strict=True):
                 read_other = bool(footers[other]) and "not_measured" not in footers[other]
                 warnings += _footer_warnings(source, footers[key], description, key,
-                                             read_other)  # fmt: skip
+                                             read_other, mode)  # fmt: skip
             if any(reads):
                 lines.append(_zero_line(source, description, reads, mode))
                 warnings += zero_warnings(source, description, reads, mode)
@@ -307,9 +307,9 @@ def subtract_zeros(runs, description, mode: str) -> tuple[list, ZerosRead]:
 
 
 def _footer_warnings(source, footer: dict, description, key: str = "current_zero",
-                     other_read: bool = False) -> list[str]:  # fmt: skip
-    """A zero the capture could not read (``other_read``: the other rest's was read), and
-    footer joints the robot does not have."""
+                     other_read: bool = False, mode: str = "subtract") -> list[str]:  # fmt: skip
+    """A zero the capture could not read (``other_read``: the other rest's was read; what
+    was done with it as ``mode`` says), and footer joints the robot does not have."""
     out = []
     unknown = sorted(set(footer) - {"not_measured"} - {j.name for j in description.joints})
     if unknown:
@@ -317,10 +317,14 @@ def _footer_warnings(source, footer: dict, description, key: str = "current_zero
                    "the robot; not used")  # fmt: skip
     if "not_measured" in footer:
         when, other = ("before", "after") if key == "current_zero_before" else ("after", "before")
-        if other_read:
+        if other_read and mode == "subtract":
             out.append(f"{source}: the current sensors' zero was not read {when} the run "
                        f"({footer['not_measured']}): the one read {other} it is taken off as "
                        "a constant; a zero that drifts during the run is not followed")  # fmt: skip
+        elif other_read:
+            out.append(f"{source}: the current sensors' zero was not read {when} the run "
+                       f"({footer['not_measured']}); the one read {other} it is left in "
+                       "(--current-zero ignore)")  # fmt: skip
         else:
             out.append(f"{source}: the current sensors' zero was not read "
                        f"({footer['not_measured']}): the std hold only while it is known to "
